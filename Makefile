@@ -1,0 +1,33 @@
+# `make run`: set up and run the whole default pipeline; `make test`: set up and run the tests.
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+
+.PHONY: setup run test lint report clean
+
+setup: $(VENV)/.installed
+
+# torch first, pinned: that exact version is the CPU wheel on the build machines; the project's
+# own `torch==2.13.0` requirement is then already met and pulls no CUDA packages.
+$(VENV)/.installed: pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet torch==2.13.0
+	$(BIN)/pip install --quiet -e ".[test]"
+	touch $@
+
+run: setup
+	$(BIN)/snakemake
+
+test: setup
+	$(BIN)/python -m pytest -q
+
+lint: setup
+	$(BIN)/ruff check .
+	$(BIN)/snakemake --lint
+
+report: setup
+	$(BIN)/snakemake --report reports/report.html
+
+clean:
+	rm -rf raw/* interim/* processed/* reports/tables/* reports/figures/* .snakemake

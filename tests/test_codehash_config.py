@@ -1,0 +1,81 @@
+"""Stage code hashes follow imports; config validation names the key and the expected type."""
+
+from pathlib import Path
+
+import pytest
+
+from pingpong.common.codehash import code_hash
+from pingpong.common.config import ConfigError, validate_config
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _tree(tmp_path):
+    files = {
+        "workflow/scripts/detect.py": "from pingpong.perception import detect\n",
+        "workflow/scripts/twin.py": "import pingpong.twin.ball as ball\n",
+        "src/pingpong/__init__.py": "",
+        "src/pingpong/perception/__init__.py": "",
+        "src/pingpong/perception/detect.py": "from .mask import hsv\nfrom ..common import util\n",
+        "src/pingpong/perception/mask.py": "hsv = 1\n",
+        "src/pingpong/common/__init__.py": "",
+        "src/pingpong/common/util.py": "x = 1\n",
+        "src/pingpong/twin/__init__.py": "",
+        "src/pingpong/twin/ball.py": "g = 9.81\n",
+    }
+    for name, text in files.items():
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_text(text)
+    return tmp_path
+
+
+def _hash(root, script):
+    code_hash.cache_clear()
+    return code_hash(script, str(root))
+
+
+def test_hash_follows_absolute_and_relative_imports(tmp_path):
+    root = _tree(tmp_path)
+    detect0, twin0 = _hash(root, "workflow/scripts/detect.py"), _hash(root, "workflow/scripts/twin.py")
+    (root / "src/pingpong/perception/mask.py").write_text("hsv = 2\n")  # reached via `from .mask`
+    detect1 = _hash(root, "workflow/scripts/detect.py")
+    assert detect1 != detect0 and _hash(root, "workflow/scripts/twin.py") == twin0
+    (root / "src/pingpong/common/util.py").write_text("x = 2\n")  # reached via `from ..common`
+    assert _hash(root, "workflow/scripts/detect.py") != detect1
+    (root / "src/pingpong/twin/ball.py").write_text("g = 9.80665\n")
+    assert _hash(root, "workflow/scripts/twin.py") != twin0
+
+
+def test_hash_ignores_comments_nowhere_it_is_bytes(tmp_path):
+    root = _tree(tmp_path)
+    before = _hash(root, "workflow/scripts/twin.py")
+    (root / "workflow/scripts/twin.py").write_text("import pingpong.twin.ball as ball  # edited\n")
+    assert _hash(root, "workflow/scripts/twin.py") != before
+
+
+SCHEMA = ROOT / "config/schema.yaml"
+
+
+def test_defaults_are_filled_from_the_schema():
+    config = validate_config({}, SCHEMA)
+    assert config["source"] == "twin" and isinstance(config["seed"], int)
+    assert config["twin"]["n_cameras"] == 4
+
+
+def test_unknown_key_is_named():
+    with pytest.raises(ConfigError, match=r"config key 'twin': unknown key\(s\) \['n_sesions'\]"):
+        validate_config({"twin": {"n_sesions": 3}}, SCHEMA)
+
+
+def test_wrong_type_names_key_and_type():
+    with pytest.raises(ConfigError, match=r"config key 'seed': expected integer, got str 'abc'"):
+        validate_config({"seed": "abc"}, SCHEMA)
+
+
+def test_shipped_configs_are_valid():
+    import yaml
+
+    for name in ("config.yaml", "paper.yaml"):
+        path = ROOT / "config" / name
+        if path.exists():
+            validate_config(yaml.safe_load(path.read_text()) or {}, SCHEMA)
