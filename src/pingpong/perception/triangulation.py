@@ -1,0 +1,100 @@
+"""Multi-view triangulation of ball centres and body joints, vectorised over all points.
+
+Points are triangulated by the linear DLT on undistorted pixels, as one batched SVD over all
+points (OpenCV's cv2.triangulatePoints solves the same system but only for two views and,
+called per point, is orders of magnitude slower; see benchmarks/bench_triangulation.py).
+Outlier views are rejected by their reprojection error through the real (distorted) lens.
+"""
+
+from itertools import combinations
+
+import numpy as np
+
+from pingpong.common.camera import Camera
+
+
+def triangulate_dlt(P: np.ndarray, pixels: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """World points (N, 3) from projection matrices P (C, 3, 4) and undistorted pixels (N, C, 2).
+
+    mask (N, C) says which views to use; a point with fewer than two is NaN. Each used view
+    contributes the rows u * P[2] - P[0] and v * P[2] - P[1] of the homogeneous system A X = 0
+    (the rows of unused views are zeroed, which leaves the solution unchanged), and X is the
+    right singular vector of the smallest singular value.
+    """
+    P = np.asarray(P, float)
+    px = np.asarray(pixels, float)
+    mask = np.asarray(mask, bool) & np.isfinite(px).all(axis=-1)
+    n_points, n_cams = mask.shape
+    px = np.where(mask[..., None], px, 0.0)
+    rows = px[..., None] * P[None, :, 2:3, :] - P[None, :, 0:2, :]  # (N, C, 2, 4)
+    A = (rows * mask[..., None, None]).reshape(n_points, 2 * n_cams, 4)
+    _, _, vh = np.linalg.svd(A, full_matrices=False)
+    X = vh[:, -1, :]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        points = X[:, :3] / X[:, 3:4]
+    points[mask.sum(axis=1) < 2] = np.nan
+    return points
+
+
+def reprojection_errors(cameras: list[Camera], points: np.ndarray, pixels: np.ndarray) -> np.ndarray:
+    """Per-view distance (N, C) in pixels between the lens projection of points (N, 3) and the
+    observed distorted pixels (N, C, 2); inf where the point lies behind the camera, NaN where unseen."""
+    errors = np.full(pixels.shape[:2], np.nan)
+    finite = np.isfinite(points).all(axis=1)
+    for c, cam in enumerate(cameras):
+        projected = cam.project(points[finite])
+        err = np.linalg.norm(projected - pixels[finite, c], axis=1)
+        err[cam.depth(points[finite]) <= 0] = np.inf  # projectPoints mirrors such points into view
+        errors[finite, c] = err
+    return errors
+
+
+def triangulate_robust(
+    cameras: list[Camera], pixels_distorted: np.ndarray, max_reproj_px: float, min_views: int = 2
+) -> dict[str, np.ndarray]:
+    """Triangulate points (N, 3) seen in distorted pixels (N, C, 2), NaN where a camera missed them.
+
+    Tries every camera subset with at least `min_views` views, largest first; a point takes
+    the largest subset it is seen in whose views all reproject within `max_reproj_px` (the
+    lowest RMS among subsets of that size), so one bad view is dropped rather than pulling the
+    point off. Points with no such subset are NaN with n_views 0. Loops over the (at most
+    2^C) subsets, never over points. For joints pass N = frames * joints.
+
+    Returns points (N, 3) in the cameras' world frame, n_views (N,), reproj_rms_px (N,) over
+    the used views, and used_mask (N, C).
+    """
+    px = np.asarray(pixels_distorted, float)
+    n_points, n_cams = px.shape[:2]
+    if n_cams != len(cameras):
+        raise ValueError(f"pixels have {n_cams} views but {len(cameras)} cameras were given")
+    if min_views < 2:
+        raise ValueError(f"min_views must be >= 2, got {min_views}")
+    seen = np.isfinite(px).all(axis=-1)
+    undistorted = np.full_like(px, np.nan)
+    for c, cam in enumerate(cameras):
+        undistorted[seen[:, c], c] = cam.undistort_pixels(px[seen[:, c], c])
+    P = np.stack([cam.P for cam in cameras])
+
+    points = np.full((n_points, 3), np.nan)
+    rms = np.full(n_points, np.nan)
+    used = np.zeros((n_points, n_cams), bool)
+    unresolved = seen.sum(axis=1) >= min_views
+    for size in range(n_cams, min_views - 1, -1):
+        best_rms = np.full(n_points, np.inf)
+        for subset in combinations(range(n_cams), size):
+            views = list(subset)
+            idx = np.flatnonzero(unresolved & seen[:, views].all(axis=1))
+            if len(idx) == 0:
+                continue
+            candidate = triangulate_dlt(P[views], undistorted[idx][:, views], np.ones((len(idx), size), bool))
+            err = reprojection_errors([cameras[c] for c in views], candidate, px[idx][:, views])
+            candidate_rms = np.sqrt(np.mean(err**2, axis=1))
+            better = (err.max(axis=1) <= max_reproj_px) & (candidate_rms < best_rms[idx])
+            take = idx[better]
+            points[take] = candidate[better]
+            rms[take] = candidate_rms[better]
+            best_rms[take] = candidate_rms[better]
+            used[take] = False
+            used[np.ix_(take, views)] = True
+        unresolved &= ~np.isfinite(best_rms)
+    return {"points": points, "n_views": used.sum(axis=1), "reproj_rms_px": rms, "used_mask": used}

@@ -1,0 +1,165 @@
+"""Triangulation: exact recovery, noise, outlier views, missing views, camera order, OpenCV parity."""
+
+import cv2
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from pingpong.common.camera import Camera, look_at
+from pingpong.perception.triangulation import triangulate_dlt, triangulate_robust
+
+
+def lab_cameras(rng: np.random.Generator, n: int = 4) -> list[Camera]:
+    """Cameras 3-5 m from the table centre, around it and above it, with real lens distortion."""
+    cameras = []
+    for c in range(n):
+        azimuth = 2 * np.pi * c / n + rng.uniform(-0.3, 0.3)
+        radius, height = rng.uniform(3.0, 5.0), rng.uniform(1.5, 3.0)
+        eye = np.array([radius * np.cos(azimuth), radius * np.sin(azimuth), height])
+        R, t = look_at(eye, rng.uniform([-0.3, -0.3, 0.0], [0.3, 0.3, 0.5]))
+        f = rng.uniform(1200, 1600)
+        K = np.array([[f, 0, 960 + rng.uniform(-20, 20)], [0, f, 540 + rng.uniform(-20, 20)], [0, 0, 1]])
+        dist = np.array([rng.uniform(-0.15, -0.05), rng.uniform(0.0, 0.08), 1e-3, -1e-3, 0.0])
+        cameras.append(Camera(f"cam{c}", K, dist, R, t, 1920, 1080))
+    return cameras
+
+
+def lab_points(rng: np.random.Generator, n: int) -> np.ndarray:
+    """Points over the table and where the players stand, m."""
+    return rng.uniform([-1.0, -2.0, 0.0], [1.0, 2.0, 1.8], size=(n, 3))
+
+
+def observe(cameras: list[Camera], points: np.ndarray) -> np.ndarray:
+    return np.stack([cam.project(points) for cam in cameras], axis=1)
+
+
+def test_exact_recovery_without_noise():
+    rng = np.random.default_rng(1)
+    cameras, points = lab_cameras(rng), lab_points(rng, 500)
+    out = triangulate_robust(cameras, observe(cameras, points), max_reproj_px=1.0)
+    assert np.abs(out["points"] - points).max() < 1e-6
+    assert (out["n_views"] == 4).all() and out["used_mask"].all()
+    assert out["reproj_rms_px"].max() < 1e-4
+
+
+def test_dlt_exact_on_undistorted_pixels_with_mask():
+    rng = np.random.default_rng(2)
+    cameras, points = lab_cameras(rng), lab_points(rng, 200)
+    P = np.stack([cam.P for cam in cameras])
+    pixels = np.stack([cv2.projectPoints(points, cv2.Rodrigues(c.R)[0], c.t, c.K, None)[0][:, 0]
+                       for c in cameras], axis=1)
+    mask = rng.random((200, 4)) < 0.7
+    pixels_garbage = np.where(mask[..., None], pixels, 1e4)  # masked views must not matter
+    result = triangulate_dlt(P, pixels_garbage, mask)
+    enough = mask.sum(axis=1) >= 2
+    assert np.abs(result[enough] - points[enough]).max() < 1e-8
+    assert np.isnan(result[~enough]).all()
+
+
+def test_half_pixel_noise_gives_millimetres():
+    rng = np.random.default_rng(3)
+    cameras, points = lab_cameras(rng), lab_points(rng, 2000)
+    pixels = observe(cameras, points) + rng.normal(0, 0.5, (2000, 4, 2))
+    out = triangulate_robust(cameras, pixels, max_reproj_px=3.0)
+    error = np.linalg.norm(out["points"] - points, axis=1)
+    assert np.median(error) < 5e-3
+    assert (out["n_views"] == 4).mean() > 0.99  # 3 px is 6 sigma: almost nothing is dropped
+    assert 0.2 < np.median(out["reproj_rms_px"]) < 0.6
+
+
+def test_outlier_view_is_rejected():
+    rng = np.random.default_rng(4)
+    cameras, points = lab_cameras(rng), lab_points(rng, 300)
+    pixels = observe(cameras, points) + rng.normal(0, 0.3, (300, 4, 2))
+    bad_view = rng.integers(0, 4, 300)
+    pixels[np.arange(300), bad_view] += np.array([50.0, 0.0])
+    out = triangulate_robust(cameras, pixels, max_reproj_px=3.0)
+    assert (out["n_views"] == 3).all()
+    assert not out["used_mask"][np.arange(300), bad_view].any()
+    assert np.median(np.linalg.norm(out["points"] - points, axis=1)) < 5e-3
+    assert out["reproj_rms_px"].max() < 3.0
+
+
+def test_points_seen_by_fewer_than_two_cameras_are_nan():
+    rng = np.random.default_rng(5)
+    cameras, points = lab_cameras(rng), lab_points(rng, 100)
+    pixels = observe(cameras, points)
+    pixels[:30, 1:] = np.nan  # seen once
+    pixels[30:40] = np.nan  # never seen
+    pixels[40:60, 2:] = np.nan  # seen twice
+    out = triangulate_robust(cameras, pixels, max_reproj_px=1.0)
+    assert np.isnan(out["points"][:40]).all()
+    assert (out["n_views"][:40] == 0).all() and not out["used_mask"][:40].any()
+    assert np.isnan(out["reproj_rms_px"][:40]).all()
+    assert np.abs(out["points"][40:] - points[40:]).max() < 1e-6
+    assert (out["n_views"][40:60] == 2).all() and (out["n_views"][60:] == 4).all()
+
+
+def test_min_views_three_drops_two_view_points():
+    rng = np.random.default_rng(6)
+    cameras, points = lab_cameras(rng), lab_points(rng, 50)
+    pixels = observe(cameras, points)
+    pixels[:20, 2:] = np.nan
+    out = triangulate_robust(cameras, pixels, max_reproj_px=1.0, min_views=3)
+    assert np.isnan(out["points"][:20]).all()
+    assert (out["n_views"][20:] == 4).all()
+
+
+def test_view_with_the_point_behind_the_camera_is_not_used():
+    rng = np.random.default_rng(7)
+    cameras = lab_cameras(rng, 2)
+    R, t = look_at(np.array([0.0, 0.5, 3.0]), np.array([0.0, 3.0, 5.0]))  # faces away from the table
+    cameras.append(Camera("away", cameras[0].K, cameras[0].dist, R, t, 1920, 1080))
+    point = np.array([[0.1, 0.2, 0.8]])
+    assert cameras[2].depth(point)[0] < 0
+    # the pinhole maps a point behind the camera to the same pixel as its mirror image in front,
+    # so all three views agree algebraically; only the depth check can refuse the third
+    out = triangulate_robust(cameras, observe(cameras, point), max_reproj_px=1.0)
+    np.testing.assert_array_equal(out["used_mask"], [[True, True, False]])
+    assert np.abs(out["points"] - point).max() < 1e-6
+
+
+def test_joints_reshape_frames_times_joints():
+    rng = np.random.default_rng(8)
+    cameras = lab_cameras(rng)
+    joints = lab_points(rng, 10 * 8).reshape(10, 8, 3)
+    pixels = observe(cameras, joints.reshape(-1, 3))
+    out = triangulate_robust(cameras, pixels, max_reproj_px=1.0)
+    assert np.abs(out["points"].reshape(10, 8, 3) - joints).max() < 1e-6
+
+
+def test_equals_cv2_triangulate_points_for_two_views():
+    rng = np.random.default_rng(9)
+    cameras, points = lab_cameras(rng, 2), lab_points(rng, 1000)
+    P = np.stack([cam.P for cam in cameras])
+    pixels = np.stack([cv2.projectPoints(points, cv2.Rodrigues(c.R)[0], c.t, c.K, None)[0][:, 0]
+                       for c in cameras], axis=1) + rng.normal(0, 1.0, (1000, 2, 2))
+    ours = triangulate_dlt(P, pixels, np.ones((1000, 2), bool))
+    homogeneous = cv2.triangulatePoints(P[0], P[1], pixels[:, 0].T.copy(), pixels[:, 1].T.copy())
+    theirs = (homogeneous[:3] / homogeneous[3]).T
+    assert np.abs(ours - theirs).max() < 1e-9
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), order=st.permutations(range(4)))
+def test_invariant_to_camera_order(seed, order):
+    rng = np.random.default_rng(seed)
+    cameras, points = lab_cameras(rng), lab_points(rng, 40)
+    pixels = observe(cameras, points) + rng.normal(0, 0.5, (40, 4, 2))
+    pixels[rng.random((40, 4)) < 0.2] = np.nan
+    pixels[:5, 0] += 40.0  # outliers in one view
+    out = triangulate_robust(cameras, pixels, max_reproj_px=3.0)
+    order = list(order)
+    permuted = triangulate_robust([cameras[c] for c in order], pixels[:, order], max_reproj_px=3.0)
+    np.testing.assert_allclose(permuted["points"], out["points"], atol=1e-9, equal_nan=True)
+    np.testing.assert_allclose(permuted["reproj_rms_px"], out["reproj_rms_px"], atol=1e-7, equal_nan=True)
+    np.testing.assert_array_equal(permuted["n_views"], out["n_views"])
+    np.testing.assert_array_equal(permuted["used_mask"], out["used_mask"][:, order])
+
+
+def test_rejects_mismatched_cameras():
+    rng = np.random.default_rng(10)
+    cameras = lab_cameras(rng, 3)
+    with pytest.raises(ValueError, match="3 cameras"):
+        triangulate_robust(cameras, np.zeros((5, 4, 2)), max_reproj_px=1.0)

@@ -1,0 +1,50 @@
+"""Run the real workflow on a copy of this checkout, for the integration tests."""
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+SNAKEMAKE = [sys.executable, "-m", "snakemake"]
+
+
+def copy_checkout(dest: Path) -> Path:
+    """The tracked and untracked-but-not-ignored files of this checkout, copied to `dest`."""
+    files = subprocess.run(["git", "ls-files", "-co", "--exclude-standard"], cwd=ROOT, check=True,
+                           capture_output=True, text=True).stdout.split()
+    for name in files:
+        if (ROOT / name).is_file():
+            (dest / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(ROOT / name, dest / name)
+    return dest
+
+
+def write_config(root: Path, config: dict, name="test.yaml") -> Path:
+    path = root / "config" / name
+    path.write_text(yaml.safe_dump(config))
+    return path
+
+
+def snakemake(root: Path, *args, configfile="config/test.yaml", check=True) -> subprocess.CompletedProcess:
+    cmd = [*SNAKEMAKE, "--cores", "2", "--configfile", configfile, *args]
+    proc = subprocess.run(cmd, cwd=root, capture_output=True, text=True)
+    if check and proc.returncode != 0:
+        raise AssertionError(f"snakemake failed ({proc.returncode}):\n{proc.stdout[-4000:]}\n{proc.stderr[-6000:]}")
+    return proc
+
+
+def mtimes(root: Path, folders=("raw", "interim", "processed", "reports")) -> dict[str, int]:
+    """Modification time (ns) of every artifact under the data folders."""
+    out = {}
+    for folder in folders:
+        for p in (root / folder).rglob("*"):
+            if p.is_file() and p.name != ".gitkeep":
+                out[str(p.relative_to(root))] = p.stat().st_mtime_ns
+    return out
+
+
+def changed(before: dict, after: dict) -> set[str]:
+    return {k for k in after if before.get(k) != after[k]}
