@@ -1,0 +1,384 @@
+"""Ball physics of the twin: flight, table bounce, paddle impact and shot aiming (table frame, SI).
+
+Flight: a = g - k_D |v| v + k_M (w x v), with k_D = rho A C_D / (2 m) and k_M = rho A r C_M / (2 m).
+This linear Magnus form is the one used in table-tennis robotics (Nakashima et al., "Modeling of
+rebound phenomenon of a rigid ball with friction and elastic effects", ACC 2010; Tebbe et al.,
+"Spin detection in robotic table tennis", ICRA 2020); it equals the lift-coefficient form
+F = 0.5 rho A C_L |v|^2 with C_L = C_M r|w|/|v|. Spin is constant in flight (its decay time is
+seconds, a flight is under one).
+
+Contacts (table and paddle) use the Nakashima 2010 impulse model for a hollow sphere
+(I = 2/3 m r^2): normal restitution e, Coulomb friction mu on the contact-point slip, and the
+ball leaves rolling when friction would reverse the slip (alpha capped at 2/5).
+
+Integration is fixed-step RK4 written on Python floats: deterministic, and for a single 3-vector
+ball ~10x faster per step than numpy or solve_ivp; events are located inside the step by linear
+interpolation of the crossing quantity and a partial RK4 step (error ~ g dt^2 / 8 ~ 1e-6 m).
+"""
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+from typing import NamedTuple
+
+import numpy as np
+from scipy.optimize import brentq, root
+
+from pingpong.frames import (
+    BALL_MASS,
+    BALL_RADIUS,
+    NET_HEIGHT,
+    NET_OVERHANG,
+    TABLE_HALF_LENGTH,
+    TABLE_HALF_WIDTH,
+)
+
+GRAVITY = 9.81  # m/s^2
+FLOOR_Z = -0.76  # floor height in the table frame (regulation table height), m
+ROLLING_ALPHA = 0.4  # 2/5: the slip vanishes at this friction ratio for a hollow sphere
+MIN_BOUNCE_VZ = 0.05  # below this rebound speed (m/s) the ball is at rest on the table
+
+
+@dataclass(frozen=True)
+class BallParams:
+    mass: float = BALL_MASS  # kg
+    radius: float = BALL_RADIUS  # m
+    air_density: float = 1.2  # kg/m^3
+    # C_D, e_t, mu_t: near realdata.fit_params_to_real on the 106 MPI ball-gun flights (C_D 0.52,
+    # e_t 0.93, mu_t 0.13 without spin); literature: C_D 0.4-0.5, e_t ~0.9, mu_t 0.25 (Nakashima 2010)
+    drag_coefficient: float = 0.5
+    magnus_coefficient: float = 0.6  # C_M above; gives lift C_L = C_M r|w|/|v| ~ 0.1-0.3 at play spins
+    table_restitution: float = 0.92  # vertical, e_t
+    table_friction: float = 0.13  # mu_t
+    paddle_restitution: float = 0.85  # normal, inverted rubber
+    paddle_friction: float = 0.6  # mu_p: rubber grips, so most paddle contacts end rolling
+
+    @property
+    def k_drag(self) -> float:
+        """k_D = rho A C_D / (2 m), 1/m."""
+        return self.air_density * math.pi * self.radius**2 * self.drag_coefficient / (2 * self.mass)
+
+    @property
+    def k_magnus(self) -> float:
+        """k_M = rho A r C_M / (2 m), dimensionless."""
+        return (self.air_density * math.pi * self.radius**3 * self.magnus_coefficient / (2 * self.mass))
+
+
+def sample_ball_params(rng: np.random.Generator, spread: float = 0.05,
+                       base: BallParams = BallParams()) -> BallParams:
+    """Per-shot variation: each coefficient scaled by (1 + spread * N(0, 1)), restitutions kept < 1."""
+    def scaled(value: float, upper: float = math.inf) -> float:
+        return float(np.clip(value * (1 + spread * rng.standard_normal()), 0.0, upper))
+
+    return replace(base, drag_coefficient=scaled(base.drag_coefficient),
+                   magnus_coefficient=scaled(base.magnus_coefficient),
+                   table_restitution=scaled(base.table_restitution, 0.99),
+                   table_friction=scaled(base.table_friction),
+                   paddle_restitution=scaled(base.paddle_restitution, 0.99),
+                   paddle_friction=scaled(base.paddle_friction))
+
+
+# ---------------------------------------------------------------- contacts
+
+def _contact(v_rel: np.ndarray, w: np.ndarray, n: np.ndarray, e: float, mu: float, r: float):
+    """Nakashima 2010 impulse model on (..., 3) arrays: relative velocity and spin after contact.
+
+    n points from the surface into the ball's side; the contact point is at -r n.
+    """
+    vn = np.sum(v_rel * n, axis=-1, keepdims=True)  # < 0 while approaching
+    slip = v_rel - vn * n - r * np.cross(w, n)  # tangential velocity of the contact point
+    slip_speed = np.linalg.norm(slip, axis=-1, keepdims=True)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        alpha = np.where(slip_speed > 0, mu * (1 + e) * np.abs(vn) / slip_speed, ROLLING_ALPHA)
+    alpha = np.minimum(alpha, ROLLING_ALPHA)  # sliding stops: the ball leaves rolling
+    v_out = v_rel - (1 + e) * vn * n - alpha * slip
+    w_out = w + 1.5 * alpha / r * np.cross(n, slip)
+    return v_out, w_out
+
+
+def bounce(v, w, params: BallParams = BallParams()) -> tuple[np.ndarray, np.ndarray]:
+    """Table bounce (Nakashima et al. 2010): velocity and spin (..., 3) in, the same out."""
+    v, w = np.asarray(v, float), np.asarray(w, float)
+    return _contact(v, w, np.array([0.0, 0.0, 1.0]), params.table_restitution, params.table_friction,
+                    params.radius)
+
+
+def paddle_impact(v_in, w_in, paddle_normal, paddle_velocity,
+                  params: BallParams = BallParams()) -> tuple[np.ndarray, np.ndarray]:
+    """Ball velocity and spin after hitting a paddle (unit face normal, face velocity in m/s).
+
+    Same impulse model as the table, in the paddle's moving frame, with the rubber's restitution and
+    friction. Both faces carry rubber, so the face the ball approaches is used whichever way the
+    normal points.
+    """
+    v_in, w_in = np.asarray(v_in, float), np.asarray(w_in, float)
+    n, v_p = np.asarray(paddle_normal, float), np.asarray(paddle_velocity, float)
+    v_rel = v_in - v_p
+    n = np.where(np.sum(v_rel * n, axis=-1, keepdims=True) > 0, -n, n)
+    v_rel_out, w_out = _contact(v_rel, w_in, n, params.paddle_restitution, params.paddle_friction,
+                                params.radius)
+    return v_rel_out + v_p, w_out
+
+
+def paddle_for_outgoing(v_in, v_out, params: BallParams = BallParams(),
+                        w_in=(0.0, 0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
+    """A paddle (unit normal, velocity along that normal) that turns v_in, w_in into v_out exactly.
+
+    With the paddle moving along its normal at speed s, paddle_impact gives
+    c = v_out - v_in + alpha slip(n) = (1 + e)(s - v_in.n) n, so n = c / |c|, and the relative normal
+    speed is |c| / (1 + e), which makes the sliding alpha = mu |c| / |slip| (capped at 2/5).
+    The 3-equation fixed point in n is solved by scipy's root from the frictionless guess n ~ v_out - v_in.
+    """
+    v_in, v_out, w_in = (np.asarray(a, float) for a in (v_in, v_out, w_in))
+    e, mu, r = params.paddle_restitution, params.paddle_friction, params.radius
+    dv = v_out - v_in
+
+    def c_of(n):
+        slip = v_in - (v_in @ n) * n - r * np.cross(w_in, n)
+        slip_speed = np.linalg.norm(slip)
+
+        def excess(alpha):  # > 0 while friction could still take a larger share of the slip
+            return mu * np.linalg.norm(dv + alpha * slip) - alpha * slip_speed
+
+        if slip_speed == 0 or excess(ROLLING_ALPHA) >= 0:
+            return dv + ROLLING_ALPHA * slip
+        # excess is convex, > 0 at 0 and < 0 at 2/5: one root between
+        return dv + brentq(excess, 0.0, ROLLING_ALPHA, xtol=1e-15) * slip
+
+    sol = root(lambda n: c_of(n) / np.linalg.norm(c_of(n)) - n, dv / np.linalg.norm(dv), tol=1e-12)
+    n = sol.x / np.linalg.norm(sol.x)
+    c = c_of(n)
+    if np.linalg.norm(c / np.linalg.norm(c) - n) > 1e-9:
+        raise ValueError(f"no paddle found for v_in={v_in}, w_in={w_in}, v_out={v_out}: {sol.message}")
+    speed = v_in @ n + np.linalg.norm(c) / (1 + e)
+    return n, speed * n
+
+
+# ---------------------------------------------------------------- flight
+
+class Event(NamedTuple):
+    kind: str  # 'bounce', 'net', 'floor', 'stop' (the stop condition fired) or 'rest' (ball stays on table)
+    time: float  # s
+    position: np.ndarray  # (3,) ball centre, m
+    side: str  # '+y' or '-y': the table half the ball is over
+
+
+class Flight(NamedTuple):
+    times: np.ndarray  # (N,) s; uniform dt, plus one extra sample at each event instant
+    positions: np.ndarray  # (N, 3) m
+    velocities: np.ndarray  # (N, 3) m/s
+    spins: np.ndarray  # (N, 3) rad/s
+    events: list[Event]
+
+
+def _accel(vx, vy, vz, wx, wy, wz, kd, km):
+    s = math.sqrt(vx * vx + vy * vy + vz * vz)
+    return (-kd * s * vx + km * (wy * vz - wz * vy),
+            -kd * s * vy + km * (wz * vx - wx * vz),
+            -GRAVITY - kd * s * vz + km * (wx * vy - wy * vx))
+
+
+def _rk4_step(p, v, w, kd, km, h):
+    """One RK4 step of (p, v) on float tuples; w is constant in flight."""
+    wx, wy, wz = w
+    a1 = _accel(*v, wx, wy, wz, kd, km)
+    v2 = tuple(v[i] + 0.5 * h * a1[i] for i in range(3))
+    a2 = _accel(*v2, wx, wy, wz, kd, km)
+    v3 = tuple(v[i] + 0.5 * h * a2[i] for i in range(3))
+    a3 = _accel(*v3, wx, wy, wz, kd, km)
+    v4 = tuple(v[i] + h * a3[i] for i in range(3))
+    a4 = _accel(*v4, wx, wy, wz, kd, km)
+    p_new = tuple(p[i] + h / 6 * (v[i] + 2 * v2[i] + 2 * v3[i] + v4[i]) for i in range(3))
+    v_new = tuple(v[i] + h / 6 * (a1[i] + 2 * a2[i] + 2 * a3[i] + a4[i]) for i in range(3))
+    return p_new, v_new
+
+
+def stop_at_y(y_plane: float) -> Callable[[float, np.ndarray, np.ndarray], float]:
+    """Stop condition for simulate_flight: the ball centre reaches the plane y = y_plane (either way)."""
+    def condition(t, p, v):
+        return (p[1] - y_plane) * math.copysign(1.0, -v[1])
+    return condition
+
+
+def _crossing(a0: float, a1: float) -> float | None:
+    """Fraction of the step where a goes from > 0 to <= 0, or None."""
+    if a0 > 0 >= a1:
+        return a0 / (a0 - a1)
+    return None
+
+
+def simulate_flight(p0, v0, w0, params: BallParams = BallParams(), dt: float = 1e-3, t_max: float = 3.0,
+                    stop: Callable[[float, np.ndarray, np.ndarray], float] | None = None,
+                    max_bounces: int = 10) -> Flight:
+    """Integrate a ball from (p0, v0, w0) at t = 0 until the floor, the net, t_max or `stop`.
+
+    Bounces on the table surface (centre at z = r within the table's extent) apply `bounce`. The net is
+    the plane y = 0 up to NET_HEIGHT over |x| <= TABLE_HALF_WIDTH + NET_OVERHANG: a ball whose centre
+    crosses it below NET_HEIGHT + r is stopped there ('net'). `stop(t, p, v)` is a continuous function;
+    the flight ends where it goes from > 0 to <= 0, the state refined onto that point (see stop_at_y).
+    """
+    kd, km, r = params.k_drag, params.k_magnus, params.radius
+    p, v = tuple(map(float, p0)), tuple(map(float, v0))
+    w = tuple(map(float, w0))
+    t = 0.0
+    times, ps, vs, ws = [t], [p], [v], [w]
+    events: list[Event] = []
+    g_prev = stop(t, np.array(p), np.array(v)) if stop else 0.0
+
+    def record(kind):
+        events.append(Event(kind, t, np.array(p), "+y" if p[1] >= 0 else "-y"))
+
+    while t < t_max - 1e-12:
+        h = min(dt, t_max - t)
+        p1, v1 = _rk4_step(p, v, w, kd, km, h)
+        # candidate events in this step as (fraction, kind); the earliest one is handled
+        found = []
+        f = _crossing(p[2] - r, p1[2] - r)
+        if f is not None:
+            x, y = p[0] + f * (p1[0] - p[0]), p[1] + f * (p1[1] - p[1])
+            if abs(x) <= TABLE_HALF_WIDTH and abs(y) <= TABLE_HALF_LENGTH:
+                found.append((f, "bounce"))
+        f = _crossing(p[1] * math.copysign(1.0, -v[1]), p1[1] * math.copysign(1.0, -v[1]))
+        if f is not None:
+            x, z = p[0] + f * (p1[0] - p[0]), p[2] + f * (p1[2] - p[2])
+            if abs(x) <= TABLE_HALF_WIDTH + NET_OVERHANG and 0 <= z < NET_HEIGHT + r:
+                found.append((f, "net"))
+        f = _crossing(p[2] - FLOOR_Z - r, p1[2] - FLOOR_Z - r)
+        if f is not None:
+            found.append((f, "floor"))
+        g1 = stop(t + h, np.array(p1), np.array(v1)) if stop else 0.0
+        if stop and (f := _crossing(g_prev, g1)) is not None:
+            found.append((f, "stop"))
+        g_prev = g1
+        if not found:
+            t, p, v = t + h, p1, v1
+            times.append(t), ps.append(p), vs.append(v), ws.append(w)
+            continue
+        f, kind = min(found)
+        p, v = _rk4_step(p, v, w, kd, km, f * h)
+        t += f * h
+        if kind == "bounce":
+            p = (p[0], p[1], r)  # exactly on the surface, so the next step cannot re-detect it
+            times.append(t), ps.append(p), vs.append(v), ws.append(w)  # arrival state
+            v_out, w_out = bounce(np.array(v), np.array(w), params)
+            v, w = tuple(v_out.tolist()), tuple(w_out.tolist())
+            record("bounce")
+            if v[2] < MIN_BOUNCE_VZ or len(events) >= max_bounces:
+                record("rest")
+                break
+            g_prev = stop(t, np.array(p), np.array(v)) if stop else 0.0
+            times.append(t), ps.append(p), vs.append(v), ws.append(w)  # departure state
+            continue
+        times.append(t), ps.append(p), vs.append(v), ws.append(w)
+        record(kind)
+        break
+    return Flight(np.array(times), np.array(ps), np.array(vs), np.array(ws), events)
+
+
+# ---------------------------------------------------------------- aiming
+
+def _fly_batch(p0, v0, w, kd, km, T, dt_max):
+    """Batched RK4 (no contacts) of N balls for their own time T (N,); positions (n+1, N, 3).
+
+    Works on (3, N) component rows with the cross product written out: np.cross costs ~10x more here.
+    """
+    n = max(int(np.ceil(T.max() / dt_max)), 1)
+    h = T / n
+    kd, km = kd.ravel(), km.ravel()
+    wx, wy, wz = w.T
+
+    def accel(v):
+        vx, vy, vz = v
+        drag = kd * np.sqrt(vx * vx + vy * vy + vz * vz)
+        return np.stack([-drag * vx + km * (wy * vz - wz * vy),
+                         -drag * vy + km * (wz * vx - wx * vz),
+                         -GRAVITY - drag * vz + km * (wx * vy - wy * vx)])
+
+    p, v = p0.T.copy(), v0.T.copy()
+    track = [p]
+    for _ in range(n):
+        a1 = accel(v)
+        v2 = v + 0.5 * h * a1
+        a2 = accel(v2)
+        v3 = v + 0.5 * h * a2
+        a3 = accel(v3)
+        v4 = v + h * a3
+        p = p + h / 6 * (v + 2 * v2 + 2 * v3 + v4)
+        v = v + h / 6 * (a1 + 2 * a2 + 2 * a3 + accel(v4))
+        track.append(p)
+    return np.stack(track).transpose(0, 2, 1)
+
+
+def _net_clearance(track: np.ndarray, r: float) -> np.ndarray:
+    """Height of the ball centre above the net top (+ r) where the track crosses y = 0, per ball (N,)."""
+    y, z = track[..., 1], track[..., 2]
+    cross = (y[:-1] > 0) & (y[1:] <= 0) | (y[:-1] < 0) & (y[1:] >= 0)
+    i = np.argmax(cross, axis=0)
+    cols = np.arange(track.shape[1])
+    f = y[i, cols] / (y[i, cols] - y[i + 1, cols])
+    z_net = z[i, cols] + f * (z[i + 1, cols] - z[i, cols])
+    return np.where(cross.any(axis=0), z_net - NET_HEIGHT - r, np.inf)
+
+
+def aim_shots(p_hit, target_bounce_xy, w0, params: BallParams | Sequence[BallParams] = BallParams(),
+              flight_time=None, speed_hint: float = 9.0, net_margin: float = 0.03,
+              dt_max: float = 0.02, tol: float = 1e-5) -> tuple[np.ndarray, np.ndarray]:
+    """Outgoing velocities (N, 3) that bounce N balls at targets (N, 2), and their flight times (N,) s.
+
+    Shooting on the time of flight T to the bounce: for a given T the bounce point (x, y, z = r) is
+    3 equations in v0, solved by Newton with a finite-difference Jacobian, all shots in one batch.
+    T defaults to distance / speed_hint; shots that do not clear the net by net_margin (m) get a 10%
+    longer (higher) flight and are solved again. RK4 at dt <= 20 ms is accurate to ~1e-6 m here
+    (checked against simulate_flight at 1 ms).
+    """
+    p_hit = np.atleast_2d(np.asarray(p_hit, float))
+    n_shots = len(p_hit)
+    target = np.atleast_2d(np.asarray(target_bounce_xy, float))
+    w0 = np.broadcast_to(np.asarray(w0, float), (n_shots, 3))
+    plist = [params] * n_shots if isinstance(params, BallParams) else list(params)
+    kd = np.array([q.k_drag for q in plist])[:, None]
+    km = np.array([q.k_magnus for q in plist])[:, None]
+    r = np.array([q.radius for q in plist])
+    goal = np.column_stack([target, r])
+    if flight_time is None:
+        # the hint, but no shorter than a drag-free parabola needs to pass over the net with the margin
+        s = np.clip(p_hit[:, 1] / (p_hit[:, 1] - goal[:, 1]), 0.05, 0.95)  # flight share before the net
+        height = NET_HEIGHT + r + net_margin - p_hit[:, 2] * (1 - s) - r * s
+        T_net = np.sqrt(np.maximum(2 * height / (GRAVITY * s * (1 - s)), 0.0))
+        T = np.maximum(np.linalg.norm(goal[:, :2] - p_hit[:, :2], axis=1) / speed_hint, 1.05 * T_net)
+    else:
+        T = np.broadcast_to(np.asarray(flight_time, float), (n_shots,)).copy()
+    v0 = np.empty((n_shots, 3))
+    todo = np.arange(n_shots)
+    eps = 1e-4  # m/s, finite-difference step: RK4 is smooth, so 1e-4 gives ~1e-8 relative accuracy
+    for _ in range(12):
+        p, g, T_, w_, kd_, km_ = p_hit[todo], goal[todo], T[todo], w0[todo], kd[todo], km[todo]
+        m = len(todo)
+        # ballistic guess without drag, then Newton
+        v = (g - p - 0.5 * np.array([0.0, 0.0, -GRAVITY]) * T_[:, None] ** 2) / T_[:, None]
+        for _ in range(10):
+            trial = np.concatenate([v] + [v + eps * np.eye(3)[k] for k in range(3)])
+            track = _fly_batch(np.tile(p, (4, 1)), trial, np.tile(w_, (4, 1)), np.tile(kd_, (4, 1)),
+                               np.tile(km_, (4, 1)), np.tile(T_, 4), dt_max)
+            end = track[-1].reshape(4, m, 3)
+            residual = end[0] - g
+            if np.abs(residual).max() < tol:
+                break
+            jac = np.stack([(end[k + 1] - end[0]) / eps for k in range(3)], axis=-1)  # (m, 3, 3)
+            v = v - np.linalg.solve(jac, residual[..., None])[..., 0]
+        if np.abs(residual).max() >= tol:
+            raise ValueError(f"aiming did not converge: a bounce misses by {np.abs(residual).max()} m")
+        v0[todo] = v
+        clear = _net_clearance(track[:, :m], r[todo]) >= net_margin
+        todo = todo[~clear]
+        if len(todo) == 0:
+            return v0, T
+        T[todo] *= 1.1
+    raise ValueError(f"shots {todo.tolist()} cannot clear the net within the flight times tried")
+
+
+def aim_shot(p_hit, target_bounce_xy, w0, params: BallParams = BallParams(), flight_time: float | None = None,
+             speed_hint: float = 9.0, net_margin: float = 0.03) -> np.ndarray:
+    """Outgoing velocity (3,) from p_hit that bounces at target_bounce_xy and clears the net (aim_shots)."""
+    v0, _ = aim_shots(p_hit, target_bounce_xy, w0, params, flight_time, speed_hint, net_margin)
+    return v0[0]
