@@ -1,0 +1,20 @@
+"""Rule twin_rig: the lab's true cameras and OptiTrack frame (ground truth, raw/twin_truth/rig.json)."""
+
+from pingpong.common.artifacts import write_json
+from pingpong.common.script import run_stage
+from pingpong.common.seeding import rng_for
+from pingpong.twin import truth
+from pingpong.twin.mocap import optitrack_from_table
+from pingpong.twin.rig import make_rig
+
+
+def main(ctx):
+    p = ctx.params
+    rng = rng_for(p["seed"], "twin_rig")
+    cameras = make_rig(rng, p["n_cameras"], p["width"], p["height"])
+    rig = {"cameras": [c.to_dict() for c in cameras],
+           "T_optitrack_from_table": optitrack_from_table(rng).tolist()}
+    write_json(rig, ctx.output.rig, truth.RIG, ctx.provenance())
+
+
+run_stage(main, globals().get("snakemake"), "twin_rig")

@@ -1,0 +1,22 @@
+"""Rule twin_simulate: one session's ball flights, shots, events, people and paddles (ground truth)."""
+
+from pingpong.common.artifacts import write_table
+from pingpong.common.script import run_stage
+from pingpong.common.seeding import rng_for
+from pingpong.twin import truth
+from pingpong.twin.session import FaultRates, simulate_session
+
+
+def main(ctx):
+    p = ctx.params
+    session = simulate_session(p["rallies"], FaultRates(**p["fault_rates"]),
+                               rng_for(p["seed"], "twin_simulate", p["session"]), p["optitrack_hz"],
+                               p["session_index"], p["bystander_rate"])
+    prov = ctx.provenance()
+    for name, df, schema in (("ball", session.ball, truth.BALL), ("shots", session.shots, truth.SHOTS),
+                             ("events", session.events, truth.EVENTS), ("people", session.people, truth.PEOPLE),
+                             ("paddles", session.paddles, truth.PADDLES)):
+        write_table(df, ctx.output[name], schema, prov)
+
+
+run_stage(main, globals().get("snakemake"), "twin_simulate")
