@@ -13,10 +13,10 @@ def main(ctx):
                                rng_for(p["seed"], "twin_simulate", p["session"]), p["optitrack_hz"],
                                p["session_index"], p["bystander_rate"])
     prov = ctx.provenance()
-    for name, df, schema in (("ball", session.ball, truth.BALL), ("shots", session.shots, truth.SHOTS),
-                             ("events", session.events, truth.EVENTS), ("people", session.people, truth.PEOPLE),
-                             ("paddles", session.paddles, truth.PADDLES)):
-        write_table(df, ctx.output[name], schema, prov)
+    schemas = {"ball": truth.BALL, "shots": truth.SHOTS, "events": truth.EVENTS, "people": truth.PEOPLE,
+               "paddles": truth.PADDLES}
+    for name, schema in schemas.items():
+        write_table(getattr(session, name), ctx.output[name], schema, prov)
 
 
 run_stage(main, globals().get("snakemake"), "twin_simulate")

@@ -14,9 +14,15 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from pingpong.frames import FRAME_NS, STRIKE_Y, TABLE_HALF_LENGTH, TABLE_HALF_WIDTH
+from pingpong.frames import FRAME_NS, STRIKE_Y, TABLE_HALF_LENGTH
 from pingpong.twin.ball import (
-    BallParams, Flight, aim_shots, paddle_for_outgoing, paddle_impact, sample_ball_params, simulate_flight,
+    BallParams,
+    Flight,
+    aim_shots,
+    paddle_for_outgoing,
+    paddle_impact,
+    sample_ball_params,
+    simulate_flight,
     stop_at_y,
 )
 from pingpong.twin.players import bystander_joints, sample_player_style
@@ -155,7 +161,7 @@ def _hitting_plane(rng, side: int) -> float:
 
 
 def simulate_rallies(n_rallies: int, rates: FaultRates, rng: np.random.Generator):
-    """Ball flights of all rallies; returns the recorder, each player's hits and tracking cues, the end time."""
+    """Ball flights of all rallies: the recorder, each player's hits and tracking cues, the end time (s)."""
     rec = _Recorder()
     hits = {1: [], -1: []}
     track = {1: ([], []), -1: ([], [])}
@@ -241,7 +247,7 @@ def _bystander_mask(times: np.ndarray, rate: float, rng) -> np.ndarray:
 
 def simulate_session(n_rallies: int, rates: FaultRates, rng: np.random.Generator, optitrack_hz: float = 240.0,
                      session_index: int = 0, bystander_rate: float = 0.2) -> SessionTruth:
-    """Ground truth of one recorded session: ball, shots, events, people at 100 Hz, paddles at optitrack_hz."""
+    """Ground truth of one session: ball, shots, events, people at 100 Hz, paddles at optitrack_hz."""
     rec, hits, track, t_end = simulate_rallies(n_rallies, rates, rng)
     t_end += 1.0
     epoch = SESSION_EPOCH_NS + session_index * 3_600_000_000_000

@@ -6,7 +6,8 @@ JOINT_COLUMNS = tuple(f"j{k:02d}_{a}" for k in range(25) for a in "xyz")
 ROT_COLUMNS = tuple(f"r{i}{j}" for i in range(3) for j in range(3))
 
 BALL = Schema("twin_ball", 1, ("time_ns", "x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "rally", "shot"))
-SHOTS = Schema("twin_shots", 1, ("rally", "shot", "hitter", "t_hit_ns", "intent", "outcome", "strike_x", "strike_z"))
+SHOTS = Schema("twin_shots", 1,
+               ("rally", "shot", "hitter", "t_hit_ns", "intent", "outcome", "strike_x", "strike_z"))
 EVENTS = Schema("twin_events", 1, ("time_ns", "kind", "rally", "shot", "side", "x", "y", "z"))
 PEOPLE = Schema("twin_people", 1, ("time_ns", "person", *JOINT_COLUMNS))
 PADDLES = Schema("twin_paddles", 1, ("time_ns", "player", "px", "py", "pz", *ROT_COLUMNS))
