@@ -16,8 +16,16 @@ import torch
 
 from pingpong import __version__
 from pingpong.common.artifacts import (
-    ArtifactError, Provenance, Schema, load_model, read_json, read_metadata, read_table, save_model,
-    write_json, write_table,
+    ArtifactError,
+    Provenance,
+    Schema,
+    load_model,
+    read_json,
+    read_metadata,
+    read_table,
+    save_model,
+    write_json,
+    write_table,
 )
 
 BALL = Schema("ball3d", 2, ("time_ns", "x"))

@@ -32,7 +32,7 @@ def snakemake(root: Path, *args, configfile="config/test.yaml", check=True) -> s
     cmd = [*SNAKEMAKE, "--cores", "2", "--configfile", configfile, *args]
     proc = subprocess.run(cmd, cwd=root, capture_output=True, text=True)
     if check and proc.returncode != 0:
-        raise AssertionError(f"snakemake failed ({proc.returncode}):\n{proc.stdout[-4000:]}\n{proc.stderr[-6000:]}")
+        raise AssertionError(f"snakemake failed ({proc.returncode}):\n{proc.stderr[-6000:]}")
     return proc
 
 
