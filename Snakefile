@@ -1,5 +1,4 @@
 # The anticipatory ping-pong pipeline. Read README.md first; DESIGN.md is the contract.
-import os
 import sys
 from pathlib import Path
 
@@ -7,10 +6,9 @@ from snakemake.utils import min_version
 
 min_version("9.0")
 
-SRC = str(Path(workflow.basedir) / "src")
-sys.path.insert(0, SRC)
-# Jobs import the package from this checkout, whatever is installed.
-os.environ["PYTHONPATH"] = os.pathsep.join(filter(None, [SRC, os.environ.get("PYTHONPATH")]))
+# The workflow's own imports come from this checkout; jobs import the installed package
+# (`pip install -e .` of this checkout, which `make` does).
+sys.path.insert(0, str(Path(workflow.basedir) / "src"))
 
 from pingpong.common.config import validate_config
 
@@ -28,4 +26,5 @@ include: "workflow/rules/twin.smk"
 rule all:
     input:
         twin_outputs(),
+        "reports/tables/twin_vs_real.md",
     default_target: True

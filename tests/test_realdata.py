@@ -14,7 +14,7 @@ from pingpong.twin.realdata import (
     load_real_flights,
 )
 
-FOLDER = "/work/shared/realdata/mpi_ball_gun"
+FOLDER = Path(__file__).resolve().parents[1] / "data/realdata/mpi_ball_gun"
 
 
 @pytest.fixture(scope="module")

@@ -1,5 +1,6 @@
 """Run the real workflow on a copy of this checkout, for the integration tests."""
 
+import os
 import shutil
 import subprocess
 import sys
@@ -29,8 +30,10 @@ def write_config(root: Path, config: dict, name="test.yaml") -> Path:
 
 
 def snakemake(root: Path, *args, configfile="config/test.yaml", check=True) -> subprocess.CompletedProcess:
-    cmd = [*SNAKEMAKE, "--cores", "2", "--configfile", configfile, *args]
-    proc = subprocess.run(cmd, cwd=root, capture_output=True, text=True)
+    cmd = [*SNAKEMAKE, "--cores", "2", *args, "--configfile", configfile]  # --configfile takes a list: last
+    # the jobs import the package from the copy, so that edits to it count
+    env = {**os.environ, "PYTHONPATH": str(root / "src")}
+    proc = subprocess.run(cmd, cwd=root, capture_output=True, text=True, env=env)
     if check and proc.returncode != 0:
         raise AssertionError(f"snakemake failed ({proc.returncode}):\n{proc.stderr[-6000:]}")
     return proc

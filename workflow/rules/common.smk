@@ -22,3 +22,12 @@ def cameras():
 wildcard_constraints:
     session=r"[A-Za-z0-9_\-]+",
     cam=r"cam\d+",
+
+
+TRUTH_TABLES = ["ball", "shots", "events", "people", "paddles"]
+
+
+def twin_outputs():
+    return ["raw/twin_truth/rig.json"] + expand(
+        "raw/twin_truth/{session}/{table}.parquet", session=sessions(), table=TRUTH_TABLES
+    )

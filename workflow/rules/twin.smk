@@ -1,6 +1,5 @@
 # The digital twin of the lab: writes raw/ as a real lab would, and the truth in raw/twin_truth/.
 TWIN = config["twin"]
-TRUTH_TABLES = ["ball", "shots", "events", "people", "paddles"]
 
 
 rule twin_rig:
@@ -38,7 +37,18 @@ rule twin_simulate:
         "../scripts/twin_simulate.py"
 
 
-def twin_outputs():
-    return ["raw/twin_truth/rig.json"] + expand(
-        "raw/twin_truth/{session}/{table}.parquet", session=sessions(), table=TRUTH_TABLES
-    )
+
+rule report_twin_flights:
+    input:
+        balls=expand("raw/twin_truth/{session}/ball.parquet", session=sessions()),
+        shots=expand("raw/twin_truth/{session}/shots.parquet", session=sessions()),
+        real="data/realdata/mpi_ball_gun",
+    output:
+        md="reports/tables/twin_vs_real.md",
+        csv="reports/tables/twin_vs_real.csv",
+    params:
+        code=code("report_twin_flights.py"),
+    log:
+        "logs/report_twin_flights.log",
+    script:
+        "../scripts/report_twin_flights.py"
