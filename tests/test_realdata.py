@@ -1,6 +1,7 @@
 """Real MPI ball-gun flights: loading, bounce detection, plausible statistics, twin vs real."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest

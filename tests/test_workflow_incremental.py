@@ -4,7 +4,6 @@ Chain: twin_rig (cameras)   twin_simulate (per session) -> report_twin_flights (
 """
 
 import pytest
-
 from workflow_util import changed, copy_checkout, mtimes, snakemake, write_config
 
 TINY = {"twin": {"n_sessions": 1, "rallies_per_session": 2, "n_cameras": 2, "width": 160, "height": 120}}

@@ -1,7 +1,5 @@
 """Rule report_twin_flights: the twin's ball flights beside the real MPI ball-gun flights."""
 
-import pandas as pd
-
 from pingpong.common.artifacts import read_table
 from pingpong.common.script import run_stage
 from pingpong.reports.tables import write_report_table
@@ -22,10 +20,10 @@ def main(ctx):
     twin = []
     for ball_path, shots_path in zip(ctx.input.balls, ctx.input.shots, strict=True):
         twin += twin_flight_stats(read_table(ball_path, truth.BALL), read_table(shots_path, truth.SHOTS))
-    real = [flight_stats(f["times"], f["positions"], f["velocities"]) for f in load_real_flights(ctx.input.real)]
-    table = compare_flights_table(twin, real)
-    write_report_table(pd.DataFrame(table), ctx.output.md, ctx.output.csv, "Twin flights against real flights",
-                       CAPTION.format(real_n=len(real), twin_n=len(twin)))
+    real = [flight_stats(f["times"], f["positions"], f["velocities"])
+            for f in load_real_flights(ctx.input.real)]
+    write_report_table(compare_flights_table(twin, real), ctx.output.md, ctx.output.csv,
+                       "Twin flights against real flights", CAPTION.format(real_n=len(real), twin_n=len(twin)))
 
 
 run_stage(main, globals().get("snakemake"), "report_twin_flights")
