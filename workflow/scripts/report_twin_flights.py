@@ -22,8 +22,9 @@ def main(ctx):
         twin += twin_flight_stats(read_table(ball_path, truth.BALL), read_table(shots_path, truth.SHOTS))
     real = [flight_stats(f["times"], f["positions"], f["velocities"])
             for f in load_real_flights(ctx.input.real)]
+    caption = CAPTION.format(real_n=len(real), twin_n=len(twin))
     write_report_table(compare_flights_table(twin, real), ctx.output.md, ctx.output.csv,
-                       "Twin flights against real flights", CAPTION.format(real_n=len(real), twin_n=len(twin)))
+                       "Twin flights against real flights", caption)
 
 
 run_stage(main, globals().get("snakemake"), "report_twin_flights")
