@@ -261,7 +261,7 @@ def _root_at_hit(dims: BodyDims, base: np.ndarray, h: int, wrist: np.ndarray, sh
     d = shoulder_dir / np.linalg.norm(shoulder_dir)
     standing = FLOOR_Z + dims.hip_height
     root_z = np.clip(wrist[2] - reach * d[2] - shoulder_off[2],
-                     FLOOR_Z + 0.8 * dims.hip_height, standing - (1 - crouch) * dims.hip_height * 0.5)
+                     FLOOR_Z + 0.6 * dims.hip_height, standing - (1 - crouch) * dims.hip_height * 0.5)
     dz = wrist[2] - (root_z + shoulder_off[2])
     if abs(dz) > 0.95 * dims.arm_reach:
         raise ValueError(f"paddle at z={wrist[2]:.2f} m is out of the player's reach")

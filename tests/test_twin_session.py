@@ -1,0 +1,86 @@
+"""Sessions of the twin: outcomes follow the physics, the truth is consistent and seeded, and the
+pre-hit pose carries information about the strike point that grows as the hit approaches."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from pingpong.common.seeding import rng_for
+from pingpong.frames import FRAME_NS, MODEL_JOINT_IDS
+from pingpong.twin.session import FaultRates, ball_positions_at, simulate_session
+
+
+@pytest.fixture(scope="module")
+def session():
+    return simulate_session(100, FaultRates(), rng_for(7, "test"), session_index=0)  # ~300 returns
+
+
+def test_same_seed_same_truth():
+    a = simulate_session(3, FaultRates(), rng_for(1, "x"))
+    b = simulate_session(3, FaultRates(), rng_for(1, "x"))
+    for name in ("ball", "shots", "events", "people", "paddles"):
+        pd.testing.assert_frame_equal(getattr(a, name), getattr(b, name))
+
+
+def test_good_shots_bounce_once_on_the_far_side(session):
+    ev, shots = session.events, session.shots
+    for shot in shots[shots.outcome == "ok"].itertuples():
+        bounces = ev[(ev.rally == shot.rally) & (ev.shot == shot.shot) & (ev.kind == "bounce")]
+        assert len(bounces) == 1
+        assert bounces.side.iloc[0] == ("-y" if shot.side > 0 else "+y")
+        assert np.isfinite(shot.strike_x) and np.isfinite(shot.strike_z)
+
+
+def test_fault_shares_are_realistic(session):
+    share = session.shots.outcome.value_counts(normalize=True)
+    assert 0.7 < share["ok"] < 0.95  # the configured fault rates sum to 0.17
+    assert {"net", "out", "miss"} <= set(share.index)
+
+
+def test_ball_truth_is_continuous_within_rallies(session):
+    t = session.ball.time_ns.to_numpy()
+    assert np.all(np.diff(t) > 0)
+    p = ball_positions_at(session.ball, np.arange(t[0], t[-1], FRAME_NS))
+    step = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    step = step[np.isfinite(step)]
+    assert step.max() < 0.3  # < 30 m/s between frames: no teleporting at hits or bounces
+
+
+def _pre_hit_features(session, frames_before: int) -> tuple[np.ndarray, np.ndarray]:
+    """Hitter's 8 joints, paddle and ball `frames_before` frames before each good return, mirrored to +y."""
+    people, paddles = session.people, session.paddles
+    X, y = [], []
+    returns = session.shots[(session.shots.outcome == "ok") & (session.shots.shot > 0)]  # not serves
+    for shot in returns.itertuples():
+        t = shot.t_hit_ns - frames_before * FRAME_NS
+        body = people[(people.person == shot.hitter)]
+        row = body.iloc[np.searchsorted(body.time_ns.to_numpy(), t)]
+        joints = row.to_numpy()[2:].astype(float).reshape(25, 3)[list(MODEL_JOINT_IDS)]
+        pad = paddles[paddles.player == shot.hitter]
+        prow = pad.iloc[np.searchsorted(pad.time_ns.to_numpy(), t)].to_numpy()[2:].astype(float)
+        ball = ball_positions_at(session.ball, [t])[0]
+        feats = np.concatenate([joints.ravel(), prow, ball])
+        s = shot.side  # mirror the far player (rotation by pi about z) so every hitter is at +y
+        feats = feats * np.tile([s, s, 1.0], len(feats) // 3)
+        # The paddle frame flips between forehand and backhand (its column 2 is the forehand face):
+        # let the linear model use a different slope for each, as B's stroke test does.
+        forehand = np.sign(-s * prow[3 + 5])  # r12: column 2's y, towards the opponent on a forehand
+        X.append(np.concatenate([feats, forehand * feats, [forehand]]))
+        y.append(shot.strike_x * s)
+    return np.array(X), np.array(y)
+
+
+def test_anticipation_signal_grows_towards_the_hit(session):
+    """Ridge regression from the true pre-hit pose to the strike x, on held-out hits."""
+    errors = {}
+    for k in (1, 10, 30):
+        X, y = _pre_hit_features(session, k)
+        n_train = int(0.7 * len(y))
+        Xa = np.column_stack([X, np.ones(len(X))])
+        A = Xa[:n_train]
+        w = np.linalg.solve(A.T @ A + 1e-3 * np.eye(A.shape[1]), A.T @ y[:n_train])
+        errors[k] = np.median(np.abs(Xa[n_train:] @ w - y[n_train:]))
+        mean_error = np.median(np.abs(y[n_train:] - y[:n_train].mean()))
+    assert errors[1] < 0.5 * mean_error  # much better than the mean, 1 frame before the hit
+    assert errors[30] > 3 * errors[1] and errors[30] > 0.6 * mean_error  # clearly worse 30 frames before
+    assert errors[1] < errors[10] < errors[30] * 1.05  # improving in between
