@@ -4,7 +4,7 @@ from pingpong.common.artifacts import write_json
 from pingpong.common.script import run_stage
 from pingpong.common.seeding import rng_for
 from pingpong.twin import truth
-from pingpong.twin.mocap import optitrack_from_table
+from pingpong.twin.optitrack_sim import table_to_optitrack
 from pingpong.twin.rig import make_rig
 
 
@@ -12,8 +12,9 @@ def main(ctx):
     p = ctx.params
     rng = rng_for(p["seed"], "twin_rig")
     cameras = make_rig(rng, p["n_cameras"], p["width"], p["height"])
+    R, t = table_to_optitrack(rng)
     rig = {"cameras": [c.to_dict() for c in cameras],
-           "T_optitrack_from_table": optitrack_from_table(rng).tolist()}
+           "optitrack_from_table": {"R": R.tolist(), "t": t.tolist()}}  # p_ot = R p_table + t
     write_json(rig, ctx.output.rig, truth.RIG, ctx.provenance())
 
 

@@ -1,0 +1,100 @@
+"""Camera calibration: intrinsics from checkerboard views, extrinsics from the ChArUco mat on the table.
+
+OpenCV does the work (findChessboardCorners + cornerSubPix, calibrateCamera, CharucoDetector,
+solvePnP); this module only chains it and reports errors per camera.
+"""
+
+import logging
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from pingpong.common.camera import Camera
+from pingpong.common.patterns import (
+    CHECKERBOARD,
+    TABLE_CHARUCO,
+    Checkerboard,
+    TableCharuco,
+    table_pattern_object_points,
+)
+
+log = logging.getLogger(__name__)
+SUBPIX = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-4)
+
+
+class CalibrationError(RuntimeError):
+    pass
+
+
+def read_gray(path) -> np.ndarray:
+    image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    if image is None:
+        raise CalibrationError(f"{path}: cannot be decoded as an image")
+    return image
+
+
+def find_checkerboard(gray: np.ndarray, board: Checkerboard = CHECKERBOARD) -> np.ndarray | None:
+    """Sub-pixel inner corners (N, 2) of the checkerboard, or None when it is not fully visible."""
+    flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+    found, corners = cv2.findChessboardCorners(gray, board.pattern_size, flags=flags)
+    if not found:
+        return None
+    return cv2.cornerSubPix(gray, corners, (5, 5), (-1, -1), SUBPIX).reshape(-1, 2)
+
+
+def calibrate_intrinsics(paths: list, board: Checkerboard = CHECKERBOARD) -> dict:
+    """K, dist (k1 k2 p1 p2 k3), RMS reprojection error (px) and views used, from checkerboard images."""
+    object_points, image_points, size, used = [], [], None, []
+    for path in paths:
+        gray = read_gray(path)
+        size = gray.shape[::-1]
+        corners = find_checkerboard(gray, board)
+        if corners is None:
+            log.warning("%s: checkerboard not found, view skipped", path)
+            continue
+        object_points.append(board.object_points().astype(np.float32))
+        image_points.append(corners.astype(np.float32))
+        used.append(str(path))
+    if len(used) < 4:
+        raise CalibrationError(f"only {len(used)} of {len(paths)} checkerboard views usable "
+                               f"(need 4), e.g. {paths[:1]}")
+    rms, K, dist, _, _ = cv2.calibrateCamera(object_points, image_points, size, None, None)
+    return {"K": K, "dist": dist.ravel()[:5], "rms_px": float(rms), "views": used, "size": size}
+
+
+def extrinsics_from_table(path, K: np.ndarray, dist: np.ndarray,
+                          pattern: TableCharuco = TABLE_CHARUCO) -> dict:
+    """World(table)->camera R, t from the ChArUco mat on the table, with its reprojection RMS (px)."""
+    gray = read_gray(path)
+    detector = cv2.aruco.CharucoDetector(pattern.board())
+    corners, ids, _, _ = detector.detectBoard(gray)
+    if ids is None or len(ids) < 6:
+        raise CalibrationError(f"{path}: the table's ChArUco mat is not visible enough "
+                               f"({0 if ids is None else len(ids)} corners, need 6)")
+    corners = cv2.cornerSubPix(gray, corners.astype(np.float32), (3, 3), (-1, -1), SUBPIX)
+    obj = table_pattern_object_points(ids.ravel(), pattern)
+    ok, rvec, tvec = cv2.solvePnP(obj, corners, K, dist, flags=cv2.SOLVEPNP_ITERATIVE)
+    if not ok:
+        raise CalibrationError(f"{path}: solvePnP failed on {len(ids)} ChArUco corners")
+    projected, _ = cv2.projectPoints(obj, rvec, tvec, K, dist)
+    rms = float(np.sqrt(np.mean(np.sum((projected.reshape(-1, 2) - corners.reshape(-1, 2)) ** 2, axis=1))))
+    return {"R": cv2.Rodrigues(rvec)[0], "t": tvec.ravel(), "rms_px": rms, "n_corners": int(len(ids))}
+
+
+def calibrate_camera(name: str, intrinsics_paths: list, table_path) -> tuple[Camera, dict]:
+    """One camera from its raw calibration captures, and its error report."""
+    intr = calibrate_intrinsics(sorted(intrinsics_paths, key=str))
+    extr = extrinsics_from_table(table_path, intr["K"], intr["dist"])
+    camera = Camera(name, intr["K"], intr["dist"], extr["R"], extr["t"], *intr["size"])
+    report = {"name": name, "intrinsics_rms_px": intr["rms_px"], "views_used": len(intr["views"]),
+              "extrinsics_rms_px": extr["rms_px"], "table_corners": extr["n_corners"],
+              "center": camera.center.tolist()}
+    log.info("%s: intrinsics RMS %.3f px over %d views, extrinsics RMS %.3f px", name,
+             intr["rms_px"], len(intr["views"]), extr["rms_px"])
+    return camera, report
+
+
+def camera_folder_paths(folder) -> tuple[list[Path], Path]:
+    folder = Path(folder)
+    return sorted(folder.glob("intrinsics_*.png")), folder / "table.png"

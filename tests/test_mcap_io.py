@@ -1,0 +1,132 @@
+"""MCAP camera and OptiTrack streams: plain-reader compatibility, round trips, damage, atomicity."""
+
+
+import cv2
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+from mcap_protobuf.decoder import DecoderFactory
+from scipy.spatial.transform import Rotation
+
+from pingpong.common.patterns import TABLE_MARKERS
+from pingpong.frames import FRAME_NS
+from pingpong.io.mcap_io import CameraStreamWriter, McapDamagedError, read_camera_stream, read_optitrack
+from pingpong.twin.optitrack_sim import table_to_optitrack, write_optitrack_session
+
+T0 = 1_700_000_000_000_000_000  # an epoch in ns
+
+
+def jpeg(i: int) -> bytes:
+    image = np.full((24, 32, 3), (i * 7) % 256, np.uint8)
+    return cv2.imencode(".jpg", image)[1].tobytes()
+
+
+@pytest.fixture
+def camera_file(tmp_path):
+    path = tmp_path / "cam2.mcap"
+    with CameraStreamWriter(path, 2, "cam2") as writer:
+        for i in range(300):
+            writer.add(T0 + i * FRAME_NS, jpeg(i) + bytes(2000))  # padding spreads frames over chunks
+    return path
+
+
+def test_plain_mcap_reader_sees_foxglove_compressed_images(camera_file):
+    with open(camera_file, "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        times = []
+        for schema, channel, message, decoded in reader.iter_decoded_messages():
+            assert schema.name == "foxglove.CompressedImage" and channel.message_encoding == "protobuf"
+            assert channel.topic == "/cam2/image"
+            assert decoded.frame_id == "cam2" and decoded.format == "jpeg"
+            assert decoded.timestamp.ToNanoseconds() == message.log_time
+            assert cv2.imdecode(np.frombuffer(decoded.data, np.uint8), cv2.IMREAD_COLOR) is not None
+            times.append(message.log_time)
+    assert len(times) == 300 and (np.diff(times) == FRAME_NS).all()  # 100 Hz, monotonic
+
+
+def test_camera_round_trip(camera_file):
+    frames = list(read_camera_stream(camera_file))
+    assert [t for t, _ in frames] == [T0 + i * FRAME_NS for i in range(300)]
+    assert all(data == jpeg(i) + bytes(2000) for i, (_, data) in enumerate(frames))
+
+
+@pytest.mark.parametrize("fraction", [0.0005, 0.1, 0.37, 0.5, 0.93, 0.999])
+def test_truncated_file_reads_up_to_the_damage(camera_file, tmp_path, fraction):
+    data = camera_file.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[:int(len(data) * fraction)])
+    with pytest.warns(UserWarning, match="cut.mcap.*truncated or corrupt after log_time"):
+        frames = list(read_camera_stream(cut))
+    expected = [T0 + i * FRAME_NS for i in range(len(frames))]
+    assert [t for t, _ in frames] == expected  # a clean prefix
+    assert all(d == jpeg(i) + bytes(2000) for i, (_, d) in enumerate(frames))
+    with pytest.raises(McapDamagedError, match=r"cut\.mcap: truncated or corrupt after log_time"):
+        list(read_camera_stream(cut, strict=True))
+
+
+def test_corrupt_bytes_are_caught_by_crc(camera_file, tmp_path):
+    data = bytearray(camera_file.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    bad = tmp_path / "bad.mcap"
+    bad.write_bytes(bytes(data))
+    with pytest.raises(McapDamagedError, match="bad.mcap"):
+        list(read_camera_stream(bad, strict=True))
+
+
+def test_an_exception_leaves_no_file(tmp_path):
+    path = tmp_path / "cam0.mcap"
+    with pytest.raises(RuntimeError), CameraStreamWriter(path, 0, "cam0") as writer:
+        writer.add(T0, jpeg(0))
+        raise RuntimeError("killed")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_frame_times_must_increase(tmp_path):
+    with pytest.raises(ValueError, match="does not follow"), \
+            CameraStreamWriter(tmp_path / "c.mcap", 0, "cam0") as w:
+        w.add(T0, jpeg(0))
+        w.add(T0, jpeg(1))
+    assert not (tmp_path / "c.mcap").exists()
+
+
+def kabsch(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """R, t minimising |R a + t - b|."""
+    ca, cb = a.mean(axis=0), b.mean(axis=0)
+    u, _, vt = np.linalg.svd((a - ca).T @ (b - cb))
+    d = np.sign(np.linalg.det(vt.T @ u.T))
+    R = vt.T @ np.diag([1, 1, d]) @ u.T
+    return R, cb - R @ ca
+
+
+def test_optitrack_session_round_trip(tmp_path):
+    rng = np.random.default_rng(0)
+    R, t = table_to_optitrack(rng)
+    np.testing.assert_allclose(R @ [0, 0, 1.0], [0, 1.0, 0], atol=1e-12)  # table up is OptiTrack's y
+    n = 240 * 4
+    times = T0 + np.arange(n) * (1_000_000_000 // 240)
+    steps = np.arange(n)
+    positions = np.column_stack([np.sin(steps / 50), np.full(n, 1.8), 0.2 + 0.01 * steps / n])
+    rotations = Rotation.from_rotvec(np.outer(np.arange(n) / n, [0.3, 0.5, 0.1])).as_matrix()
+    path = tmp_path / "optitrack.mcap"
+    write_optitrack_session(path, times, {"A": (positions, rotations)}, (R, t), rng, clock_offset_ns=1234)
+
+    with open(path, "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        for schema, channel, _, decoded in reader.iter_decoded_messages():
+            assert schema.name == "foxglove.PoseInFrame" and decoded.frame_id == "optitrack_world"
+            assert channel.topic.startswith("/optitrack/")
+    bodies = read_optitrack(path)
+    assert set(bodies) == {"paddle_A"} | {f"table_marker_{i}" for i in range(4)}
+    paddle = bodies["paddle_A"]
+    assert list(paddle.columns) == ["time_ns", "x", "y", "z", "qx", "qy", "qz", "qw"]
+    assert 0.9 * n < len(paddle) <= n and paddle.time_ns.is_monotonic_increasing
+    index = ((paddle.time_ns.to_numpy() - 1234 - T0) // (1_000_000_000 // 240)).astype(int)
+    expected = positions[index] @ R.T + t
+    assert np.abs(paddle[["x", "y", "z"]].to_numpy() - expected).max() < 0.002  # 0.3 mm noise
+    rot_err = (Rotation.from_quat(paddle[["qx", "qy", "qz", "qw"]].to_numpy()).inv()
+               * Rotation.from_matrix(R @ rotations[index])).magnitude()
+    assert np.degrees(rot_err).max() < 0.6
+    # the table markers give back the table-to-OptiTrack transform (Kabsch)
+    means = np.array([bodies[f"table_marker_{i}"][["x", "y", "z"]].mean().to_numpy() for i in range(4)])
+    R_est, t_est = kabsch(TABLE_MARKERS, means)
+    assert np.abs(R_est - R).max() < 1e-3 and np.abs(t_est - t).max() < 5e-4
