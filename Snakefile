@@ -25,6 +25,6 @@ include: "workflow/rules/twin.smk"
 
 rule all:
     input:
-        twin_outputs(),
-        "reports/tables/twin_vs_real.md",
+        raw_outputs(),
+        "reports/tables/twin_vs_real.md" if config["source"] == "twin" else [],
     default_target: True

@@ -27,7 +27,11 @@ wildcard_constraints:
 TRUTH_TABLES = ["ball", "shots", "events", "people", "paddles"]
 
 
-def twin_outputs():
-    return ["raw/twin_truth/rig.json"] + expand(
-        "raw/twin_truth/{session}/{table}.parquet", session=sessions(), table=TRUTH_TABLES
+def raw_outputs():
+    """Everything under raw/ that the later stages read (written by the twin or by a lab)."""
+    return (
+        expand("raw/calibration/{cam}/table.png", cam=cameras())
+        + expand("raw/sessions/{session}/{cam}.mcap", session=sessions(), cam=cameras())
+        + expand("raw/sessions/{session}/openpose/{cam}", session=sessions(), cam=cameras())
+        + expand("raw/sessions/{session}/optitrack.mcap", session=sessions())
     )

@@ -52,3 +52,80 @@ rule report_twin_flights:
         "logs/report_twin_flights.log",
     script:
         "../scripts/report_twin_flights.py"
+
+
+rule twin_calibration:
+    input:
+        rig="raw/twin_truth/rig.json",
+    output:
+        expand(
+            "raw/calibration/{cam}/intrinsics_{k:02d}.png",
+            cam=cameras(),
+            k=range(TWIN["calibration_views"]),
+        ),
+        expand("raw/calibration/{cam}/table.png", cam=cameras()),
+    params:
+        seed=config["seed"],
+        folder="raw/calibration",
+        views=TWIN["calibration_views"],
+        code=code("twin_calibration.py"),
+    log:
+        "logs/twin_calibration.log",
+    script:
+        "../scripts/twin_calibration.py"
+
+
+rule twin_camera:
+    input:
+        rig="raw/twin_truth/rig.json",
+        ball="raw/twin_truth/{session}/ball.parquet",
+        people="raw/twin_truth/{session}/people.parquet",
+        paddles="raw/twin_truth/{session}/paddles.parquet",
+    output:
+        mcap="raw/sessions/{session}/{cam}.mcap",
+        ball2d="raw/twin_truth/{session}/{cam}_ball2d.parquet",
+    params:
+        seed=config["seed"],
+        session="{session}",
+        cam="{cam}",
+        jpeg_quality=TWIN["jpeg_quality"],
+        code=code("twin_camera.py"),
+    log:
+        "logs/twin_camera/{session}_{cam}.log",
+    benchmark:
+        "benchmarks/results/twin_camera/{session}_{cam}.tsv"
+    script:
+        "../scripts/twin_camera.py"
+
+
+rule twin_openpose:
+    input:
+        rig="raw/twin_truth/rig.json",
+        people="raw/twin_truth/{session}/people.parquet",
+    output:
+        folder=directory("raw/sessions/{session}/openpose/{cam}"),
+    params:
+        seed=config["seed"],
+        session="{session}",
+        cam="{cam}",
+        code=code("twin_openpose.py"),
+    log:
+        "logs/twin_openpose/{session}_{cam}.log",
+    script:
+        "../scripts/twin_openpose.py"
+
+
+rule twin_optitrack:
+    input:
+        rig="raw/twin_truth/rig.json",
+        paddles="raw/twin_truth/{session}/paddles.parquet",
+    output:
+        mcap="raw/sessions/{session}/optitrack.mcap",
+    params:
+        seed=config["seed"],
+        session="{session}",
+        code=code("twin_optitrack.py"),
+    log:
+        "logs/twin_optitrack/{session}.log",
+    script:
+        "../scripts/twin_optitrack.py"

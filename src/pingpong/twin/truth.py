@@ -12,3 +12,4 @@ EVENTS = Schema("twin_events", 1, ("time_ns", "kind", "rally", "shot", "side", "
 PEOPLE = Schema("twin_people", 1, ("time_ns", "person", *JOINT_COLUMNS))
 PADDLES = Schema("twin_paddles", 1, ("time_ns", "player", "px", "py", "pz", *ROT_COLUMNS))
 RIG = Schema("twin_rig", 1)
+BALL2D = Schema("twin_ball2d", 1, ("time_ns", "u", "v", "visibility", "radius_px"))
