@@ -1,4 +1,6 @@
 # Shared helpers of the rules: sessions, cameras and each stage's code hash.
+from pathlib import Path
+
 from pingpong.common.codehash import code_hash
 
 

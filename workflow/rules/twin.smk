@@ -66,7 +66,7 @@ rule twin_calibration:
         expand("raw/calibration/{cam}/table.png", cam=cameras()),
     params:
         seed=config["seed"],
-        folder="raw/calibration",
+        folder=lambda wc, output: Path(output[0]).parents[1],
         views=TWIN["calibration_views"],
         code=code("twin_calibration.py"),
     log:

@@ -12,7 +12,7 @@ from pingpong.twin.render import make_lab
 def main(ctx):
     p = ctx.params
     cameras = [Camera.from_dict(c) for c in read_json(ctx.input.rig, truth.RIG)["cameras"]]
-    write_calibration_images(p["folder"], cameras, make_lab(rng_for(p["seed"], "twin_lab")),
+    write_calibration_images(str(p["folder"]), cameras, make_lab(rng_for(p["seed"], "twin_lab")),
                              rng_for(p["seed"], "twin_calibration"), p["views"])
 
 
