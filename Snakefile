@@ -21,10 +21,13 @@ validate_config(config, Path(workflow.basedir) / "config/schema.yaml")
 
 include: "workflow/rules/common.smk"
 include: "workflow/rules/twin.smk"
+include: "workflow/rules/perception.smk"
 
 
 rule all:
     input:
         raw_outputs(),
+        "interim/calibration/cameras.json",
+        expand("interim/paddle/{session}.parquet", session=sessions()),
         "reports/tables/twin_vs_real.md" if config["source"] == "twin" else [],
     default_target: True

@@ -39,7 +39,8 @@ class StageContext:
 
     def provenance(self) -> Provenance:
         params = {k: v for k, v in self.params.items() if k != "code"}
-        return Provenance.of(self.stage, params, self.params.get("code", ""), list(self.input))
+        files = [f for v in self.input.values() for f in (v if isinstance(v, list | tuple) else [v])]
+        return Provenance.of(self.stage, params, self.params.get("code", ""), files)
 
 
 def _named(items) -> Named:

@@ -159,3 +159,9 @@ def read_optitrack(path: str | os.PathLike, strict: bool = False) -> dict[str, p
         df = pd.DataFrame(body_rows, columns=POSE_COLUMNS)
         frames[body] = df.astype({"time_ns": np.int64})
     return frames
+
+
+def read_camera_times(path: str | os.PathLike, strict: bool = False) -> np.ndarray:
+    """log_time (ns) of every frame of a camera file, without decoding the images: the camera clock."""
+    return np.array([t for _, t, _ in _iter_messages(Path(path), "foxglove.CompressedImage", strict,
+                                                     "foxglove.CompressedImage frames")], dtype=np.int64)

@@ -10,6 +10,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from pingpong.common.artifacts import Schema, read_json
 from pingpong.common.camera import Camera
 from pingpong.common.patterns import (
     CHECKERBOARD,
@@ -72,7 +73,9 @@ def extrinsics_from_table(path, K: np.ndarray, dist: np.ndarray,
     if ids is None or len(ids) < 6:
         raise CalibrationError(f"{path}: the table's ChArUco mat is not visible enough "
                                f"({0 if ids is None else len(ids)} corners, need 6)")
-    corners = cv2.cornerSubPix(gray, corners.astype(np.float32), (3, 3), (-1, -1), SUBPIX)
+    # Far squares are ~10 px deep at 480x360: a larger window would reach into the markers.
+    half = max(2, round(2 * gray.shape[1] / 480))
+    corners = cv2.cornerSubPix(gray, corners.astype(np.float32), (half, half), (-1, -1), SUBPIX)
     obj = table_pattern_object_points(ids.ravel(), pattern)
     ok, rvec, tvec = cv2.solvePnP(obj, corners, K, dist, flags=cv2.SOLVEPNP_ITERATIVE)
     if not ok:
@@ -98,3 +101,12 @@ def calibrate_camera(name: str, intrinsics_paths: list, table_path) -> tuple[Cam
 def camera_folder_paths(folder) -> tuple[list[Path], Path]:
     folder = Path(folder)
     return sorted(folder.glob("intrinsics_*.png")), folder / "table.png"
+
+
+CAMERAS = Schema("cameras", 1)
+
+
+def load_cameras(path) -> tuple[list[Camera], dict]:
+    """The calibrated cameras and the rest of interim/calibration/cameras.json."""
+    payload = read_json(path, CAMERAS)
+    return [Camera.from_dict(c) for c in payload["cameras"]], payload

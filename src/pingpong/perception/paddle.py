@@ -15,6 +15,8 @@ import numpy as np
 import pandas as pd
 from scipy.spatial.transform import Rotation, Slerp
 
+from pingpong.common.artifacts import Schema
+from pingpong.common.patterns import TABLE_MARKERS
 from pingpong.common.rigid import apply_transform, fit_rigid_transform, rotate_matrices
 
 log = logging.getLogger(__name__)
@@ -170,3 +172,40 @@ def read_motive_csv(path: str | Path) -> dict[str, pd.DataFrame]:
         frame.attrs = {"source": str(path), **meta}
         bodies[name] = frame
     return bodies
+
+
+ROT_COLUMNS = tuple(f"r{i}{j}" for i in range(3) for j in range(3))  # row-major paddle rotation
+PADDLE = Schema("paddle", 1, ("time_ns", "player", "px", "py", "pz", *ROT_COLUMNS, "valid"))
+
+
+def optitrack_to_table(optitrack: dict[str, pd.DataFrame],
+                       marker_prefix: str = "table_marker_") -> tuple[np.ndarray, float]:
+    """T_table_from_optitrack from the table-corner markers (each marker's median), and its RMS (m)."""
+    names = sorted((b for b in optitrack if b.startswith(marker_prefix)),
+                   key=lambda b: int(b[len(marker_prefix):]))
+    if len(names) < 3:
+        raise ValueError(f"need >= 3 table markers '{marker_prefix}<i>' in the OptiTrack stream, "
+                         f"found {names}")
+    measured = np.array([optitrack[b][["x", "y", "z"]].median().to_numpy() for b in names])
+    known = TABLE_MARKERS[[int(b[len(marker_prefix):]) for b in names]]
+    return fit_optitrack_to_table(measured, known)
+
+
+def paddle_table(optitrack: dict[str, pd.DataFrame], bodies: dict[str, str],
+                 T_table_from_optitrack: np.ndarray, frame_times_ns: np.ndarray,
+                 max_gap_s: float = 0.05) -> pd.DataFrame:
+    """Each player's paddle in the table frame on the camera clock; gaps are rows with valid = False."""
+    parts = []
+    for player, body in bodies.items():
+        if body not in optitrack:
+            raise ValueError(f"rigid body '{body}' (player '{player}') not in the OptiTrack stream; "
+                             f"bodies there: {sorted(optitrack)}")
+        df = optitrack[body]
+        pos, rot, valid = resample_poses(df["time_ns"].to_numpy(), df[["x", "y", "z"]].to_numpy(),
+                                         df[["qx", "qy", "qz", "qw"]].to_numpy(), frame_times_ns, max_gap_s)
+        pos, rot = to_table_frame(pos, rot, T_table_from_optitrack)
+        parts.append(pd.DataFrame({"time_ns": frame_times_ns, "player": player,
+                                   **{f"p{a}": pos[:, k] for k, a in enumerate("xyz")},
+                                   **dict(zip(ROT_COLUMNS, rot.reshape(-1, 9).T, strict=True)),
+                                   "valid": valid}))
+    return pd.concat(parts, ignore_index=True)
