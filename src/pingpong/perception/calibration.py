@@ -22,6 +22,7 @@ from pingpong.common.patterns import (
 
 log = logging.getLogger(__name__)
 SUBPIX = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-4)
+OUTLIER_VIEW_FACTOR = 3.0  # a view whose RMS exceeds this many times the median view's is dropped
 
 
 class CalibrationError(RuntimeError):
@@ -60,8 +61,26 @@ def calibrate_intrinsics(paths: list, board: Checkerboard = CHECKERBOARD) -> dic
     if len(used) < 4:
         raise CalibrationError(f"only {len(used)} of {len(paths)} checkerboard views usable "
                                f"(need 4), e.g. {paths[:1]}")
-    rms, K, dist, _, _ = cv2.calibrateCamera(object_points, image_points, size, None, None)
+    rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(object_points, image_points, size, None, None)
+    # A board seen nearly edge-on gives poorly located corners that pull the whole fit:
+    # drop views far worse than the typical one and fit again (once).
+    view_rms = np.array([_view_rms(o, i, r, t, K, dist)
+                         for o, i, r, t in zip(object_points, image_points, rvecs, tvecs, strict=True)])
+    keep = view_rms <= OUTLIER_VIEW_FACTOR * np.median(view_rms)
+    if not keep.all() and keep.sum() >= 4:
+        for path in np.array(used)[~keep]:
+            log.warning("%s: view reprojects %.2f px RMS (median %.2f), dropped", path,
+                        view_rms[used.index(path)], np.median(view_rms))
+        object_points = [o for o, k in zip(object_points, keep, strict=True) if k]
+        image_points = [i for i, k in zip(image_points, keep, strict=True) if k]
+        used = [u for u, k in zip(used, keep, strict=True) if k]
+        rms, K, dist, _, _ = cv2.calibrateCamera(object_points, image_points, size, None, None)
     return {"K": K, "dist": dist.ravel()[:5], "rms_px": float(rms), "views": used, "size": size}
+
+
+def _view_rms(obj, img, rvec, tvec, K, dist) -> float:
+    projected, _ = cv2.projectPoints(obj, rvec, tvec, K, dist)
+    return float(np.sqrt(np.mean(np.sum((projected.reshape(-1, 2) - img.reshape(-1, 2)) ** 2, axis=1))))
 
 
 def extrinsics_from_table(path, K: np.ndarray, dist: np.ndarray,
