@@ -8,20 +8,11 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory
-from workflow_util import copy_checkout, snakemake, write_config
-
-TINY = {"twin": {"n_sessions": 1, "rallies_per_session": 2, "n_cameras": 2, "width": 240, "height": 180,
-                 "calibration_views": 4, "optitrack_hz": 240}}
 
 
 @pytest.fixture(scope="module")
-def raw(tmp_path_factory):
-    root = copy_checkout(tmp_path_factory.mktemp("twinraw"))
-    write_config(root, TINY)
-    session = "raw/sessions/s00"
-    snakemake(root, f"{session}/cam0.mcap", f"{session}/cam1.mcap", f"{session}/optitrack.mcap",
-              f"{session}/openpose/cam0", "raw/calibration/cam1/table.png")
-    return root / "raw"
+def raw(tiny_run):
+    return tiny_run / "raw"
 
 
 def _messages(path):
@@ -39,7 +30,7 @@ def test_camera_streams_are_foxglove_jpeg_at_100_hz(raw):
             assert decoded.format == "jpeg" and decoded.frame_id == cam
             assert decoded.timestamp.ToNanoseconds() == message.log_time
             image = cv2.imdecode(np.frombuffer(decoded.data, np.uint8), cv2.IMREAD_COLOR)
-            assert image is not None and image.shape == (180, 240, 3)
+            assert image is not None and image.shape == (360, 480, 3)
             times.append(message.log_time)
         assert schemas == {"foxglove.CompressedImage"} and len(topics) == 1
         assert len(times) > 500 and np.all(np.diff(times) == 10_000_000)
@@ -76,4 +67,4 @@ def test_calibration_captures_decode(raw):
     for cam in ("cam0", "cam1"):
         folder = raw / "calibration" / cam
         for path in [*sorted(folder.glob("intrinsics_*.png")), folder / "table.png"]:
-            assert cv2.imread(str(path)).shape == (180, 240, 3)
+            assert cv2.imread(str(path)).shape == (360, 480, 3)
