@@ -1,13 +1,12 @@
-"""Test settings: hypothesis derandomised so that CI runs are repeatable (same examples every run)."""
+"""Test settings: hypothesis derandomised so that CI runs are repeatable (same examples every run),
+and the small twin run that the stage tests share."""
 
+import pytest
 from hypothesis import settings
+from workflow_util import copy_checkout, snakemake, write_config
 
 settings.register_profile("repeatable", derandomize=True, deadline=None)
 settings.load_profile("repeatable")
-
-
-import pytest  # noqa: E402
-from workflow_util import copy_checkout, snakemake, write_config  # noqa: E402
 
 # One small twin run shared by the stage tests: 1 session of 2 rallies, 2 cameras at the default
 # resolution (the perception thresholds are stated for it), 8 checkerboard views.
