@@ -29,5 +29,6 @@ rule all:
         raw_outputs(),
         "interim/calibration/cameras.json",
         expand("interim/paddle/{session}.parquet", session=sessions()),
+        expand("interim/{signal}/{session}.parquet", signal=["ball3d", "pose3d"], session=sessions()),
         "reports/tables/twin_vs_real.md" if config["source"] == "twin" else [],
     default_target: True

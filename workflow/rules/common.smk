@@ -21,6 +21,20 @@ def cameras():
     return config["lab"]["cameras"]
 
 
+def session_cameras(session):
+    """The cameras recorded in a session: a lab session may lack one (>= 2 must remain)."""
+    if config["source"] == "twin":
+        return cameras()
+    present = [c for c in cameras() if Path(f"raw/sessions/{session}/{c}.mcap").exists()]
+    missing = sorted(set(cameras()) - set(present))
+    if len(present) < 2:
+        raise WorkflowError(f"session {session}: only {present} of the cameras {cameras()} have a stream "
+                            f"in raw/sessions/{session}/; at least two are needed to triangulate")
+    if missing:
+        logger.warning(f"session {session}: no stream for {missing}; triangulating with {present}")
+    return present
+
+
 wildcard_constraints:
     session=r"[A-Za-z0-9_\-]+",
     cam=r"cam\d+",

@@ -37,3 +37,60 @@ rule paddle:
         "logs/paddle/{session}.log",
     script:
         "../scripts/paddle.py"
+
+
+rule detection:
+    input:
+        mcap="raw/sessions/{session}/{cam}.mcap",
+    output:
+        detections="interim/detections/{session}/{cam}.parquet",
+    params:
+        strict=PERCEPTION["strict_mcap"],
+        code=code("detection.py"),
+    log:
+        "logs/detection/{session}_{cam}.log",
+    benchmark:
+        "benchmarks/results/detection/{session}_{cam}.tsv"
+    script:
+        "../scripts/detection.py"
+
+
+rule pose2d:
+    input:
+        cameras="interim/calibration/cameras.json",
+        mcap="raw/sessions/{session}/{cam}.mcap",
+        openpose="raw/sessions/{session}/openpose/{cam}",
+    output:
+        pose2d="interim/pose2d/{session}/{cam}.parquet",
+    params:
+        cam="{cam}",
+        min_confidence=PERCEPTION["pose_min_confidence"],
+        strict=PERCEPTION["strict_mcap"],
+        code=code("pose2d.py"),
+    log:
+        "logs/pose2d/{session}_{cam}.log",
+    script:
+        "../scripts/pose2d.py"
+
+
+rule triangulation:
+    input:
+        cameras="interim/calibration/cameras.json",
+        detections=lambda wc: expand(
+            "interim/detections/{session}/{cam}.parquet", session=wc.session, cam=session_cameras(wc.session)
+        ),
+        pose2d=lambda wc: expand(
+            "interim/pose2d/{session}/{cam}.parquet", session=wc.session, cam=session_cameras(wc.session)
+        ),
+    output:
+        ball3d="interim/ball3d/{session}.parquet",
+        pose3d="interim/pose3d/{session}.parquet",
+    params:
+        cams=lambda wc: session_cameras(wc.session),
+        max_reproj_px=PERCEPTION["max_reproj_px"],
+        min_views=PERCEPTION["min_views"],
+        code=code("triangulation.py"),
+    log:
+        "logs/triangulation/{session}.log",
+    script:
+        "../scripts/triangulation.py"

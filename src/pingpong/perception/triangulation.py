@@ -9,8 +9,11 @@ Outlier views are rejected by their reprojection error through the real (distort
 from itertools import combinations
 
 import numpy as np
+import pandas as pd
 
+from pingpong.common.artifacts import Schema
 from pingpong.common.camera import Camera
+from pingpong.frames import MODEL_JOINT_IDS
 
 
 def triangulate_dlt(P: np.ndarray, pixels: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -98,3 +101,49 @@ def triangulate_robust(
             used[np.ix_(take, views)] = True
         unresolved &= ~np.isfinite(best_rms)
     return {"points": points, "n_views": used.sum(axis=1), "reproj_rms_px": rms, "used_mask": used}
+
+
+BALL3D = Schema("ball3d", 1, ("time_ns", "x", "y", "z", "n_views", "reproj_rms_px"))
+POSE3D_JOINT_COLUMNS = tuple(f"j{j:02d}_{q}" for j in MODEL_JOINT_IDS for q in ("x", "y", "z", "n"))
+POSE3D = Schema("pose3d", 1, ("time_ns", "player", *POSE3D_JOINT_COLUMNS))
+
+
+def _aligned_times(tables: list[pd.DataFrame]) -> np.ndarray:
+    """The camera clock shared by every view (the cameras are synchronised: equal frame times)."""
+    times = tables[0]["time_ns"].unique()
+    for table in tables[1:]:
+        if not np.array_equal(table["time_ns"].unique(), times):
+            raise ValueError("camera frame times differ between views: the cameras must share a clock")
+    return times
+
+
+def ball3d_table(cameras: list[Camera], detections: list[pd.DataFrame], max_reproj_px: float,
+                 min_views: int = 2) -> pd.DataFrame:
+    """The ball's 3D centre per camera frame from each camera's detections (table frame)."""
+    times = _aligned_times(detections)
+    px = np.stack([np.where(d["detected"].to_numpy()[:, None], d[["u", "v"]].to_numpy(), np.nan)
+                   for d in detections], axis=1)
+    tri = triangulate_robust(cameras, px, max_reproj_px, min_views)
+    return pd.DataFrame({"time_ns": times, **dict(zip("xyz", tri["points"].T, strict=True)),
+                         "n_views": tri["n_views"], "reproj_rms_px": tri["reproj_rms_px"]})
+
+
+def pose3d_table(cameras: list[Camera], poses2d: list[pd.DataFrame], max_reproj_px: float,
+                 min_views: int = 2) -> pd.DataFrame:
+    """Both players' 8 model joints in 3D per frame; a joint seen well by < min_views cameras is NaN."""
+    parts = []
+    for player in ("near", "far"):
+        views = [p[p["player"] == player] for p in poses2d]
+        times = _aligned_times(views)
+        n_joints = len(MODEL_JOINT_IDS)
+        px = np.stack([np.stack([v[[f"j{j:02d}_u", f"j{j:02d}_v"]].to_numpy() for j in MODEL_JOINT_IDS],
+                                axis=1) for v in views], axis=2)  # (F, 8, C, 2)
+        tri = triangulate_robust(cameras, px.reshape(-1, len(cameras), 2), max_reproj_px, min_views)
+        points = tri["points"].reshape(len(times), n_joints, 3)
+        n_views = tri["n_views"].reshape(len(times), n_joints)
+        cols = {}
+        for k, j in enumerate(MODEL_JOINT_IDS):
+            cols |= {f"j{j:02d}_x": points[:, k, 0], f"j{j:02d}_y": points[:, k, 1],
+                     f"j{j:02d}_z": points[:, k, 2], f"j{j:02d}_n": n_views[:, k]}
+        parts.append(pd.DataFrame({"time_ns": times, "player": player, **cols}))
+    return pd.concat(parts, ignore_index=True)
