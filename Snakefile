@@ -30,5 +30,5 @@ rule all:
         "interim/calibration/cameras.json",
         expand("interim/paddle/{session}.parquet", session=sessions()),
         expand("interim/{signal}/{session}.parquet", signal=["ball3d", "pose3d"], session=sessions()),
-        "reports/tables/twin_vs_real.md" if config["source"] == "twin" else [],
+        twin_reports(),
     default_target: True

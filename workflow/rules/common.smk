@@ -51,3 +51,10 @@ def raw_outputs():
         + expand("raw/sessions/{session}/openpose/{cam}", session=sessions(), cam=cameras())
         + expand("raw/sessions/{session}/optitrack.mcap", session=sessions())
     )
+
+
+def twin_reports():
+    """Reports that compare against the twin's truth: only twin runs have one."""
+    if config["source"] != "twin":
+        return []
+    return ["reports/tables/twin_vs_real.md", "reports/tables/perception_accuracy.md"]

@@ -94,3 +94,28 @@ rule triangulation:
         "logs/triangulation/{session}.log",
     script:
         "../scripts/triangulation.py"
+
+
+rule report_perception:
+    input:
+        cameras="interim/calibration/cameras.json",
+        rig="raw/twin_truth/rig.json",
+        detections=expand("interim/detections/{session}/{cam}.parquet", session=sessions(), cam=cameras()),
+        ball2d=expand("raw/twin_truth/{session}/{cam}_ball2d.parquet", session=sessions(), cam=cameras()),
+        ball3d=expand("interim/ball3d/{session}.parquet", session=sessions()),
+        ball=expand("raw/twin_truth/{session}/ball.parquet", session=sessions()),
+        pose3d=expand("interim/pose3d/{session}.parquet", session=sessions()),
+        people=expand("raw/twin_truth/{session}/people.parquet", session=sessions()),
+        paddle=expand("interim/paddle/{session}.parquet", session=sessions()),
+        paddles=expand("raw/twin_truth/{session}/paddles.parquet", session=sessions()),
+    output:
+        md="reports/tables/perception_accuracy.md",
+        csv="reports/tables/perception_accuracy.csv",
+    params:
+        sessions=sessions(),
+        cams=cameras(),
+        code=code("report_perception.py"),
+    log:
+        "logs/report_perception.log",
+    script:
+        "../scripts/report_perception.py"
