@@ -14,7 +14,8 @@ TINY_RUN = {"twin": {"n_sessions": 1, "rallies_per_session": 2, "n_cameras": 2, 
                      "calibration_views": 8}}
 TINY_TARGETS = ["raw/sessions/s00/cam0.mcap", "raw/sessions/s00/cam1.mcap", "raw/sessions/s00/optitrack.mcap",
                 "raw/sessions/s00/openpose/cam0", "raw/sessions/s00/openpose/cam1",
-                "interim/calibration/cameras.json", "interim/paddle/s00.parquet"]
+                "interim/calibration/cameras.json", "interim/paddle/s00.parquet",
+                "reports/tables/perception_accuracy.md"]
 
 
 @pytest.fixture(scope="session")

@@ -28,3 +28,10 @@ def test_paddles_within_2_mm_and_1_degree_with_gaps_marked(tiny_run):
     assert len(rows) == 4 and not _failed(rows), rows
     assert 0.9 < measured["valid"].mean() < 1.0  # the twin's dropouts show as gaps, not invented poses
     assert measured.loc[~measured["valid"], "px"].isna().all()
+
+
+def test_every_perception_figure_meets_its_threshold(tiny_run):
+    """Detection recall >= 99 %, median < 1 px, false < 0.5 %; 3D ball < 5 mm; joints < 2 cm; the rest."""
+    table = pd.read_csv(tiny_run / "reports/tables/perception_accuracy.csv")
+    assert len(table) == 16  # 2 cameras x (2 calibration + 3 detection) + ball + joints + 2 x 2 paddle rows
+    assert table["ok"].all(), table[~table["ok"]].to_string()
