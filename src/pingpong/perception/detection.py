@@ -1,0 +1,168 @@
+"""Ball detection (the paper's appendix method): an HSV threshold for orange, the largest blob, and its
+sub-pixel centre, searched in a window around the previous detection.
+
+Thresholds, from the twin renderer's colour table (twin.render's docstring, OpenCV HSV) and measured
+on its streams (480x360, JPEG q90 4:4:4):
+- H 8..19: the ball is H 12; red rubber and the extinguisher (H 0-1) fall below, the ball bucket
+  (H 24) above. 8 rather than the table's 6 drops red-on-skin edge blends (H 2-8) too.
+- S >= 170: the ball is S 235 (its blurred pixels >= 200 in the middle); skin (S <= 140), the paddle
+  handle (100) and the poster (90) fall below. At the suggested 150, JPEG noise lifts 3-7 px patches
+  of skin over the line in nearly every frame, so with no ball in play the largest blob is skin.
+- V >= 110: the ball is V 150..245 (shaded); the cardboard box (V 70) falls below.
+- 3 px minimum area at 480x360 (27 at 1440x1080): isolated 1-2 px blends at red/skin edges still pass
+  the colour test; the ball's blob is >= 4 px when at least half of it is visible. Maximum 100 px
+  (900 at 1440x1080): the ball's blob is at most 25 px on the twin; a 4x margin for nearer cameras.
+
+Sub-pixel centre: the centroid of the blob and its 1-px rim of orange-hued pixels, each weighted by its
+saturation above the local background's (the median over the rim around the blob). Motion blur and
+anti-aliasing mix the ball into its edge pixels in proportion to coverage, so those weights use the
+partial pixels that a binary mask drops. Against the twin's truth (visibility >= 0.5, 1341 balls in
+two 480x360 streams): median error 0.115 px, p95 0.29 px. Measured alternatives: the binary blob's
+centroid 0.180 / 0.39 px; saturation x value weights 0.18 / 0.34; (R - B) above the rim's 0.15 / 0.50;
+linear unmixing of each rim pixel into ball colour and rim median 0.07 / 0.44 (exact on a flat
+background, but the ball's shading and cluttered rims give it the longer tail). Saturation is not
+linear in coverage where the background is itself saturated (blue-green wall, table top): a blend
+passes through grey, so there a 1.5-2 px disc's centre errs up to 0.25 px; on grey, < 0.1 px.
+
+Cost at 480x360 (benchmarks/bench_detection.py): ~0.2 ms in a window, ~1 ms on a whole frame (the HSV
+conversion and inRange of every pixel), against ~2 ms to decode the JPEG. Whole frames are searched
+whenever the ball was not found in the frame before, i.e. between rallies.
+"""
+
+import logging
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+import pandas as pd
+
+from pingpong.common.artifacts import Schema
+
+log = logging.getLogger(__name__)
+
+DETECTIONS = Schema("detections", 1, ("time_ns", "u", "v", "area_px", "detected", "decode_ok"))
+
+REFERENCE_WIDTH = 1440  # px: the lab cameras' width, at which the pixel sizes of BallDetector are stated
+RIM_HUE = (5, 22)  # OpenCV hue of rim pixels that may carry part of the ball (orange blended with anything)
+_RIM_KERNEL = np.ones((3, 3), np.uint8)
+
+
+@dataclass(frozen=True)
+class BallDetector:
+    """Parameters of the detector; pixel sizes at REFERENCE_WIDTH, scaled to the image's width."""
+
+    hue_min: int = 8  # OpenCV hue, 0..179
+    hue_max: int = 19
+    saturation_min: int = 170  # 0..255
+    value_min: int = 110  # 0..255
+    min_area_px: float = 27.0  # blob area bounds, px at REFERENCE_WIDTH (area scales with width^2)
+    max_area_px: float = 900.0
+    window_px: float = 200.0  # side of the square searched around the previous detection, px
+
+    def scaled(self, width: int) -> tuple[float, float, int]:
+        """(min area, max area, half window side) in pixels of an image `width` px wide."""
+        scale = width / REFERENCE_WIDTH
+        half_window = max(1, round(self.window_px * scale / 2))
+        return self.min_area_px * scale**2, self.max_area_px * scale**2, half_window
+
+
+def _largest_blob(mask: np.ndarray, min_area: float, max_area: float):
+    """(bounding box x, y, w, h, blob mask (h, w) uint8 0/1, pixel count) of the largest blob within the
+    area bounds, or None.
+
+    Blobs are found by cv2.findContours (0.07 ms on a 480x360 mask, against 2 ms for
+    connectedComponentsWithStats, which labels the whole background too) but measured by pixel count:
+    cv2.contourArea of a 3-4 px blob is 0-1, its polygon running through the pixel centres.
+    """
+    contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    best = None
+    for contour in contours:
+        x, y, w, h = cv2.boundingRect(contour)
+        if w * h < min_area:  # cannot hold enough pixels: most specks end here
+            continue
+        blob = np.zeros((h, w), np.uint8)
+        cv2.drawContours(blob, [contour], -1, 1, cv2.FILLED, offset=(-x, -y))
+        blob &= mask[y:y + h, x:x + w]  # inRange's 255 -> 1; holes stay out
+        area = int(blob.sum())
+        if min_area <= area <= max_area and (best is None or area > best[5]):
+            best = (x, y, w, h, blob, area)
+    return best
+
+
+def _weighted_centre(hsv: np.ndarray, x: int, y: int, blob: np.ndarray) -> tuple[float, float]:
+    """Saturation-weighted centroid (u, v) of a blob (mask at x, y of `hsv`) and its orange rim."""
+    h, w = blob.shape
+    x0, y0 = max(x - 1, 0), max(y - 1, 0)
+    x1, y1 = min(x + w + 1, hsv.shape[1]), min(y + h + 1, hsv.shape[0])
+    patch = hsv[y0:y1, x0:x1]
+    core = np.zeros(patch.shape[:2], np.uint8)
+    core[y - y0:y - y0 + h, x - x0:x - x0 + w] = blob
+    saturation = patch[..., 1].astype(np.float32)
+    rim = core == 0
+    background = np.median(saturation[rim]) if rim.any() else 0.0
+    orange_hue = cv2.inRange(patch[..., 0], RIM_HUE[0], RIM_HUE[1]) // 255
+    weights = np.maximum(saturation - background, 0) * (cv2.dilate(core, _RIM_KERNEL) & orange_hue)
+    total = weights.sum()
+    if total <= 0:  # a rim as saturated as the blob (orange against red rubber): the blob's own centroid
+        weights, total = core.astype(np.float32), core.sum()
+    # first moments in numpy, not cv2.moments: that reads an (N, 2) patch (a 1-px wide blob at the
+    # image border) as N points of a contour
+    return (x0 + weights.sum(axis=0) @ np.arange(weights.shape[1]) / total,
+            y0 + weights.sum(axis=1) @ np.arange(weights.shape[0]) / total)
+
+
+def detect_ball(image_bgr: np.ndarray, detector: BallDetector,
+                previous_uv: tuple[float, float] | None = None) -> tuple[float, float, int] | None:
+    """(u, v, area_px) of the ball in a BGR image, or None; searches around previous_uv when given.
+
+    u, v: pixel coordinates (OpenCV: pixel centres at integers); area_px: the thresholded blob's size.
+    """
+    height, width = image_bgr.shape[:2]
+    min_area, max_area, half = detector.scaled(width)
+    x0, y0 = 0, 0
+    window = image_bgr
+    if previous_uv is not None:
+        cu = min(max(int(round(previous_uv[0])), 0), width - 1)
+        cv = min(max(int(round(previous_uv[1])), 0), height - 1)
+        x0, y0 = max(cu - half, 0), max(cv - half, 0)
+        window = image_bgr[y0:cv + half + 1, x0:cu + half + 1]
+    hsv = cv2.cvtColor(window, cv2.COLOR_BGR2HSV)
+    mask = cv2.inRange(hsv, (detector.hue_min, detector.saturation_min, detector.value_min),
+                       (detector.hue_max, 255, 255))
+    found = _largest_blob(mask, min_area, max_area)
+    if found is None:
+        return None
+    x, y, _, _, blob, area = found
+    u, v = _weighted_centre(hsv, x, y, blob)
+    return x0 + u, y0 + v, area
+
+
+def detect_stream(frames: Iterable[tuple[int, bytes]], detector: BallDetector) -> pd.DataFrame:
+    """Detections (DETECTIONS' columns) of a stream of (time_ns, JPEG) frames, decoding one at a time.
+
+    Each frame is searched around the previous frame's detection, the whole frame when there was none.
+    A frame that does not decode is logged, marked decode_ok=False and skipped; tracking restarts.
+    """
+    times, us, vs, areas, decoded = [], [], [], [], []
+    previous = None
+    for time_ns, jpeg in frames:
+        try:
+            image = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR)
+        except cv2.error as err:  # an empty buffer raises rather than returning None
+            log.warning("frame at %d ns: JPEG does not decode (%s); skipped", time_ns, err)
+            image = None
+        else:
+            if image is None:
+                log.warning("frame at %d ns: JPEG (%d bytes) does not decode; skipped", time_ns, len(jpeg))
+        found = None if image is None else detect_ball(image, detector, previous)
+        previous = found[:2] if found is not None else None
+        times.append(time_ns)
+        decoded.append(image is not None)
+        us.append(found[0] if found else np.nan)
+        vs.append(found[1] if found else np.nan)
+        areas.append(found[2] if found else 0)
+    detected = np.isfinite(np.asarray(us, np.float64))
+    return pd.DataFrame({"time_ns": np.asarray(times, np.int64), "u": np.asarray(us, np.float64),
+                         "v": np.asarray(vs, np.float64), "area_px": np.asarray(areas, np.int32),
+                         "detected": detected, "decode_ok": np.asarray(decoded, bool)})
