@@ -12,12 +12,12 @@ default 10 ms step and at 1 ms.
 
 import argparse
 import contextlib
-import time
 from dataclasses import replace
 from unittest import mock
 
 import numpy as np
 import pinocchio as pin
+from timing import best_time
 
 from pingpong.frames import STRIKE_Y
 from pingpong.robot import control
@@ -25,15 +25,6 @@ from pingpong.robot.control import ControlParams, control_step
 from pingpong.robot.episode import EpisodeParams, run_episode
 from pingpong.robot.model import load_robot
 from pingpong.twin.ball import aim_shots, simulate_flight, stop_at_y
-
-
-def best_time(fn, repeats: int) -> tuple[float, object]:
-    times, result = [], None
-    for _ in range(repeats):
-        start = time.perf_counter()
-        result = fn()
-        times.append(time.perf_counter() - start)
-    return min(times), result
 
 
 def full_recompute_jacobian(robot, q):

@@ -8,10 +8,10 @@ point. Results are checked to agree before timing is reported.
 """
 
 import argparse
-import time
 
 import cv2
 import numpy as np
+from timing import best_time
 
 from pingpong.common.camera import Camera, look_at
 from pingpong.perception.triangulation import triangulate_dlt, triangulate_robust
@@ -25,15 +25,6 @@ def lab_cameras(n: int) -> list[Camera]:
         R, t = look_at(np.array([4 * np.cos(azimuth), 4 * np.sin(azimuth), 2.5]), np.array([0, 0, 0.3]))
         cameras.append(Camera(f"cam{c}", K, np.array([-0.1, 0.05, 0, 0, 0]), R, t, 1920, 1080))
     return cameras
-
-
-def best_time(fn, repeats: int) -> tuple[float, object]:
-    times, result = [], None
-    for _ in range(repeats):
-        start = time.perf_counter()
-        result = fn()
-        times.append(time.perf_counter() - start)
-    return min(times), result
 
 
 def cv2_per_point(P, pixels):
