@@ -204,8 +204,8 @@ def test_the_window_searches_only_around_the_previous_detection():
 
 def test_sizes_scale_with_the_image_width():
     detector = BallDetector()
-    assert detector.scaled(1440) == (27.0, 900.0, 100)
-    assert detector.scaled(480) == pytest.approx((3.0, 100.0, 33))
+    assert detector.scaled(1440) == (36.0, 900.0, 100)
+    assert detector.scaled(480) == pytest.approx((4.0, 100.0, 33))
     image = canvas()
     draw_disc(image, 240.0, 180.0, 0.8, render.BALL_BGR)  # 2 px: a colour-blend speck, not a ball
     assert detect_ball(to_uint8(image), detector) is None
