@@ -22,6 +22,8 @@ validate_config(config, Path(workflow.basedir) / "config/schema.yaml")
 include: "workflow/rules/common.smk"
 include: "workflow/rules/twin.smk"
 include: "workflow/rules/perception.smk"
+include: "workflow/rules/curation.smk"
+include: "workflow/rules/learning.smk"
 
 
 rule all:
@@ -29,6 +31,8 @@ rule all:
         raw_outputs(),
         "interim/calibration/cameras.json",
         expand("interim/paddle/{session}.parquet", session=sessions()),
-        expand("interim/{signal}/{session}.parquet", signal=["ball3d", "pose3d"], session=sessions()),
+        "reports/tables/curation.md",
+        "reports/tables/cv_results.md",
+        "reports/tables/strike_error.md",
         twin_reports(),
     default_target: True

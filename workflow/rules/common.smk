@@ -2,6 +2,7 @@
 from pathlib import Path
 
 from pingpong.common.codehash import code_hash
+from pingpong.learning.grid import expand_grid
 
 
 def code(script):
@@ -38,6 +39,8 @@ def session_cameras(session):
 wildcard_constraints:
     session=r"[A-Za-z0-9_\-]+",
     cam=r"cam\d+",
+    config_id=r"[0-9a-f]{12}",
+    fold=r"\d+",
 
 
 TRUTH_TABLES = ["ball", "shots", "events", "people", "paddles"]

@@ -1,0 +1,64 @@
+# From 3D signals to a curated dataset of hits: filtering, events, segments, curation, dataset, splits.
+CURATION = config["curation"]
+
+
+rule filtering:
+    input:
+        ball3d="interim/ball3d/{session}.parquet",
+        pose3d="interim/pose3d/{session}.parquet",
+        paddle="interim/paddle/{session}.parquet",
+    output:
+        ball="interim/filtered/{session}_ball.parquet",
+        pose="interim/filtered/{session}_pose.parquet",
+        events="interim/events/{session}.parquet",
+    params:
+        cutoff_ball_hz=CURATION["cutoff_ball_hz"],
+        cutoff_pose_hz=CURATION["cutoff_pose_hz"],
+        code=code("filtering.py"),
+    log:
+        "logs/filtering/{session}.log",
+    script:
+        "../scripts/filtering.py"
+
+
+rule segments:
+    input:
+        ball="interim/filtered/{session}_ball.parquet",
+        pose="interim/filtered/{session}_pose.parquet",
+        events="interim/events/{session}.parquet",
+        paddle="interim/paddle/{session}.parquet",
+    output:
+        segments="interim/segments/{session}.parquet",
+    params:
+        session="{session}",
+        rules=CURATION["rules"],
+        code=code("segments.py"),
+    log:
+        "logs/segments/{session}.log",
+    script:
+        "../scripts/segments.py"
+
+
+rule dataset:
+    input:
+        segments=expand("interim/segments/{session}.parquet", session=sessions()),
+        ball=expand("interim/filtered/{session}_ball.parquet", session=sessions()),
+        pose=expand("interim/filtered/{session}_pose.parquet", session=sessions()),
+        paddle=expand("interim/paddle/{session}.parquet", session=sessions()),
+    output:
+        segments="processed/segments.parquet",
+        dataset="processed/dataset.parquet",
+        md="reports/tables/curation.md",
+        csv="reports/tables/curation.csv",
+    params:
+        sessions=sessions(),
+        seed=config["seed"],
+        n_frames=CURATION["n_frames"],
+        test_fraction=CURATION["test_fraction"],
+        calibration_fraction=CURATION["calibration_fraction"],
+        n_folds=config["training"]["n_folds"],
+        code=code("dataset.py"),
+    log:
+        "logs/dataset.log",
+    script:
+        "../scripts/dataset.py"

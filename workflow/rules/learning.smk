@@ -1,0 +1,102 @@
+# Learning: 5-fold cross-validated grid search (one job per configuration and fold), the refit of the
+# winner, a ball-only baseline, per-frame predictions and the paper's Table 1.
+TRAINING = config["training"]
+TRAIN_SETTINGS = {k: TRAINING[k] for k in ("batch_size", "max_epochs", "patience", "min_delta")}
+TRAIN_SETTINGS["device"] = config["device"]
+GRID = {c["config_id"]: c for c in expand_grid(TRAINING["grid"])}
+FOLDS = range(TRAINING["n_folds"])
+
+
+rule train_cv:
+    input:
+        dataset="processed/dataset.parquet",
+    output:
+        model="processed/models/cv/{config_id}/fold{fold}.safetensors",
+        sidecar="processed/models/cv/{config_id}/fold{fold}.json",
+        result="processed/models/cv/{config_id}/fold{fold}_result.json",
+    params:
+        config=lambda wc: GRID[wc.config_id],
+        fold=lambda wc: int(wc.fold),
+        settings=TRAIN_SETTINGS,
+        seed=config["seed"],
+        code=code("train_cv.py"),
+    log:
+        "logs/train_cv/{config_id}_fold{fold}.log",
+    benchmark:
+        "benchmarks/results/train_cv/{config_id}_fold{fold}.tsv"
+    resources:
+        gpu=1 if config["device"] == "cuda" else 0,
+    script:
+        "../scripts/train_cv.py"
+
+
+rule select_model:
+    input:
+        results=expand("processed/models/cv/{config_id}/fold{fold}_result.json", config_id=GRID, fold=FOLDS),
+    output:
+        selection="processed/models/selection.json",
+        md="reports/tables/cv_results.md",
+        csv="reports/tables/cv_results.csv",
+    params:
+        configs=list(GRID.values()),
+        code=code("select_model.py"),
+    log:
+        "logs/select_model.log",
+    script:
+        "../scripts/select_model.py"
+
+
+rule train_final:
+    input:
+        dataset="processed/dataset.parquet",
+        selection="processed/models/selection.json",
+    output:
+        model="processed/models/{variant}.safetensors",
+        sidecar="processed/models/{variant}.json",
+    params:
+        ball_only=lambda wc: wc.variant == "ball_only",
+        settings=TRAIN_SETTINGS,
+        seed=config["seed"],
+        code=code("train_final.py"),
+    wildcard_constraints:
+        variant="final|ball_only",
+    log:
+        "logs/train_final/{variant}.log",
+    benchmark:
+        "benchmarks/results/train_final/{variant}.tsv"
+    script:
+        "../scripts/train_final.py"
+
+
+rule predict:
+    input:
+        dataset="processed/dataset.parquet",
+        selection="processed/models/selection.json",
+        final="processed/models/final.safetensors",
+        ball_only="processed/models/ball_only.safetensors",
+        cv_models=expand("processed/models/cv/{config_id}/fold{fold}.safetensors", config_id=GRID, fold=FOLDS),
+    output:
+        predictions="processed/predictions.parquet",
+    params:
+        code=code("predict.py"),
+    log:
+        "logs/predict.log",
+    script:
+        "../scripts/predict.py"
+
+
+rule report_strike_error:
+    input:
+        predictions="processed/predictions.parquet",
+    output:
+        md="reports/tables/strike_error.md",
+        csv="reports/tables/strike_error.csv",
+        frames_md="reports/tables/strike_error_by_frame.md",
+        frames_csv="reports/tables/strike_error_by_frame.csv",
+        figure="reports/figures/strike_error.png",
+    params:
+        code=code("report_strike_error.py"),
+    log:
+        "logs/report_strike_error.log",
+    script:
+        "../scripts/report_strike_error.py"

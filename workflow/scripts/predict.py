@@ -1,0 +1,37 @@
+"""Rule predict: per hit and frame before the hit, the trajectory parameters and the strike point.
+
+Test and calibration hits: the final model (and the ball-only baseline, for the report). Training
+hits: out of fold, each predicted by the selected configuration's model that did not train on it.
+"""
+
+import pandas as pd
+
+from pingpong.common.artifacts import read_json, read_table, write_table
+from pingpong.common.script import run_stage
+from pingpong.curation.dataset import DATASET, dataset_arrays
+from pingpong.learning.cv import BALL_ONLY, PREDICTIONS, SELECTION, prediction_table
+from pingpong.learning.models import load_net
+from pingpong.learning.train import predict
+
+
+def _stem(weights_path: str) -> str:
+    return weights_path.removesuffix(".safetensors")
+
+
+def main(ctx):
+    dataset = read_table(ctx.input.dataset, DATASET)
+    best = read_json(ctx.input.selection, SELECTION)["config"]["config_id"]
+    X, _ = dataset_arrays(dataset)
+    held_out = (dataset["split"] != "train").to_numpy()
+    final, ball_only = (load_net(_stem(f)) for f in (ctx.input.final, ctx.input.ball_only))
+    test = dataset[held_out]
+    parts = [prediction_table(test, predict(final, X[held_out]), "final"),
+             prediction_table(test, predict(ball_only, X[held_out][..., BALL_ONLY]), "ball_only")]
+    for stem in (_stem(f) for f in ctx.input.cv_models if f"/{best}/" in f):
+        fold = int(stem.rsplit("fold", 1)[1])
+        rows = ((dataset["split"] == "train") & (dataset["fold"] == fold)).to_numpy()
+        parts.append(prediction_table(dataset[rows], predict(load_net(stem), X[rows]), "final"))
+    write_table(pd.concat(parts, ignore_index=True), ctx.output.predictions, PREDICTIONS, ctx.provenance())
+
+
+run_stage(main, globals().get("snakemake"), "predict")

@@ -1,0 +1,24 @@
+"""Rule report_strike_error: the paper's Table 1 and the error against frames before the hit."""
+
+from pingpong.common.artifacts import read_table
+from pingpong.common.script import run_stage
+from pingpong.learning.cv import PREDICTIONS
+from pingpong.reports.strike_error import error_by_frame, plot_error_vs_frames, table1, with_mean_baseline
+from pingpong.reports.tables import write_report_table
+
+CAPTION = """Median absolute error (cm) of the strike point (x where the ball crosses y = -1.40 m) on the
+test hits, by region of the true strike point, at 10 and 1 frames before the hit (the paper's Table 1).
+`final`: the selected model refit on the training part; `ball_only`: the same model and training fed
+the ball's position alone; `mean`: every hit predicted at the training hits' mean strike point.
+n_hits: test hits. All 30 frames are in strike_error_by_frame.md/csv and the figure."""
+
+
+def main(ctx):
+    by_frame = error_by_frame(with_mean_baseline(read_table(ctx.input.predictions, PREDICTIONS)))
+    o = ctx.output
+    write_report_table(table1(by_frame), o.md, o.csv, "Strike-point error (Table 1)", CAPTION)
+    write_report_table(by_frame, o.frames_md, o.frames_csv, "Strike-point error at every frame", CAPTION)
+    plot_error_vs_frames(by_frame, o.figure)
+
+
+run_stage(main, globals().get("snakemake"), "report_strike_error")

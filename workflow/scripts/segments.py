@@ -1,0 +1,18 @@
+"""Rule segments: one session's candidate hits (the paper's segments), kept or excluded with a reason."""
+
+from pingpong.common.artifacts import read_table, write_table
+from pingpong.common.script import run_stage
+from pingpong.curation.segments import EVENTS, SEGMENTS, curate_segments, find_segments
+from pingpong.perception.paddle import PADDLE
+from pingpong.perception.triangulation import BALL3D, POSE3D
+
+
+def main(ctx):
+    p = ctx.params
+    ball, pose = read_table(ctx.input.ball, BALL3D), read_table(ctx.input.pose, POSE3D)
+    candidates = find_segments(ball, read_table(ctx.input.events, EVENTS), p["session"])
+    curated = curate_segments(candidates, ball, pose, read_table(ctx.input.paddle, PADDLE), **p["rules"])
+    write_table(curated, ctx.output.segments, SEGMENTS, ctx.provenance())
+
+
+run_stage(main, globals().get("snakemake"), "segments")

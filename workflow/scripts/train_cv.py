@@ -1,0 +1,21 @@
+"""Rule train_cv: one (configuration, fold) job of the cross-validated grid search."""
+
+from pingpong.common.artifacts import read_table, write_json
+from pingpong.common.script import run_stage
+from pingpong.curation.dataset import DATASET, dataset_arrays
+from pingpong.learning.cv import CV_RESULT, fit_fold
+from pingpong.learning.models import save_net
+
+
+def main(ctx):
+    p = ctx.params
+    dataset = read_table(ctx.input.dataset, DATASET)
+    train = dataset[dataset["split"] == "train"]
+    X, Y = dataset_arrays(train)
+    net, result = fit_fold(X, Y, train["fold"].to_numpy(), p["fold"], p["config"], p["settings"], p["seed"])
+    prov = ctx.provenance()
+    save_net(net, {**p["config"], "fold": p["fold"]}, ctx.output.model.removesuffix(".safetensors"), prov)
+    write_json(result, ctx.output.result, CV_RESULT, prov)
+
+
+run_stage(main, globals().get("snakemake"), "train_cv")
