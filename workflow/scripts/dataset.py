@@ -14,9 +14,9 @@ from pingpong.reports.tables import write_report_table
 
 CAPTION = """Every candidate hit (a segment from the ball crossing the net towards a player to that player's
 strike and on through the post-hit flight) by decision: kept, or the first curation rule it failed, in
-the order {rules}. Thresholds: config/schema.yaml `curation`. {kept} of {total} candidates kept; the
-kept hits form processed/dataset.parquet ({n_train} train in {n_folds} folds, {n_cal} calibration, {n_test} test,
-split by rally)."""
+the order {rules}. Thresholds: config/schema.yaml `curation`. {kept} of {total} candidates kept;
+the kept hits form processed/dataset.parquet ({n_train} train in {n_folds} folds, {n_cal} calibration,
+{n_test} test, split by rally)."""
 
 
 def main(ctx):

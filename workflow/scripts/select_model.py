@@ -9,8 +9,8 @@ from pingpong.learning.cv import CV_RESULT, SELECTION
 from pingpong.learning.grid import grid_summary, select_best
 from pingpong.reports.tables import write_report_table
 
-CAPTION = """{n_folds}-fold cross-validation of every configuration of the grid (config/config.yaml `training.grid`)
-on the training part: mean and standard deviation of the validation loss (the paper's loss: summed
+CAPTION = """{n_folds}-fold cross-validation of every configuration of the grid (config `training.grid`) on
+the training part: mean and standard deviation of the validation loss (the paper's loss: summed
 absolute error in m over 24 points of the path, averaged over the 30 frames before the hit), best first.
 The first row is the configuration refit on the whole training part."""
 
