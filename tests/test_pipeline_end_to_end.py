@@ -1,0 +1,50 @@
+"""The whole default workflow on the shared tiny run: curation, dataset, learning and reports wired end to
+end, checked against the twin's truth where there is one."""
+
+import json
+
+import numpy as np
+import pandas as pd
+
+from pingpong.frames import N_INPUT
+
+
+def test_curation_keeps_good_returns_and_names_every_fault(tiny_run):
+    segments = pd.read_parquet(tiny_run / "processed/segments.parquet")
+    assert len(segments) > 0 and segments["decision"].notna().all()
+    kept = segments[segments["decision"] == "kept"]
+    # every kept hit is a true good return of the same session: found through the whole perception
+    # chain, nearly all within one frame (test_segments holds the event detector itself to 99 %)
+    gaps = []
+    for session, rows in kept.groupby("session"):
+        shots = pd.read_parquet(tiny_run / f"raw/twin_truth/{session}/shots.parquet")
+        good = shots.loc[shots["outcome"] == "ok", "t_hit_ns"].to_numpy()
+        gaps.append(np.abs(rows["t_hit_ns"].to_numpy()[:, None] - good[None]).min(axis=1))
+    gaps = np.concatenate(gaps) / 10_000_000  # frames
+    assert len(gaps) >= 10 and gaps.max() < 3 and np.mean(gaps <= 1) >= 0.9
+    table = pd.read_csv(tiny_run / "reports/tables/curation.csv")
+    assert table["candidates"].sum() == len(segments)
+
+
+def test_dataset_holds_mirrored_39_value_sequences_split_by_rally(tiny_run):
+    dataset = pd.read_parquet(tiny_run / "processed/dataset.parquet")
+    X = np.stack(dataset["x"].to_numpy()).reshape(len(dataset), -1, N_INPUT)
+    assert X.shape[1] == 40 and np.isfinite(X).all()
+    assert (X[:, -1, 37] > 0).all()  # the ball at the hit is on the hitter's (+y) side after mirroring
+    parts = dataset.groupby(["session", "rally"])["split"].nunique()
+    assert (parts == 1).all()
+
+
+def test_learning_outputs_predictions_for_every_held_out_hit_and_frame(tiny_run):
+    dataset = pd.read_parquet(tiny_run / "processed/dataset.parquet")
+    pred = pd.read_parquet(tiny_run / "processed/predictions.parquet")
+    held_out = (dataset["split"] != "train").sum()
+    assert (pred[pred["model"] == "ball_only"].shape[0]) == 30 * held_out
+    assert set(pred["frames_before_hit"]) == set(range(1, 31))
+    final = pred[pred["model"] == "final"]
+    assert len(final) == 30 * len(dataset)  # held-out by the final model, training hits out of fold
+    selection = json.loads((tiny_run / "processed/models/selection.json").read_text())
+    assert selection["config"]["cell"] == "gru"
+    table = pd.read_csv(tiny_run / "reports/tables/strike_error.csv")
+    assert set(table["model"]) == {"final", "ball_only", "mean"}
+    assert (tiny_run / "reports/figures/strike_error.png").stat().st_size > 1000
