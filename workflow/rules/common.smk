@@ -50,8 +50,8 @@ def raw_outputs():
     """Everything under raw/ that the later stages read (written by the twin or by a lab)."""
     return (
         expand("raw/calibration/{cam}/table.png", cam=cameras())
-        + expand("raw/sessions/{session}/{cam}.mcap", session=sessions(), cam=cameras())
-        + expand("raw/sessions/{session}/openpose/{cam}", session=sessions(), cam=cameras())
+        + [f"raw/sessions/{s}/{c}.mcap" for s in sessions() for c in session_cameras(s)]
+        + [f"raw/sessions/{s}/openpose/{c}" for s in sessions() for c in session_cameras(s)]
         + expand("raw/sessions/{session}/optitrack.mcap", session=sessions())
     )
 

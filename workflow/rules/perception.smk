@@ -25,7 +25,7 @@ rule paddle:
     input:
         cameras="interim/calibration/cameras.json",
         optitrack="raw/sessions/{session}/optitrack.mcap",
-        clock=lambda wc: f"raw/sessions/{wc.session}/{cameras()[0]}.mcap",
+        clock=lambda wc: f"raw/sessions/{wc.session}/{session_cameras(wc.session)[0]}.mcap",
     output:
         paddle="interim/paddle/{session}.parquet",
     params:
