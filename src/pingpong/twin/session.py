@@ -129,7 +129,7 @@ class _Recorder:
     def __init__(self):
         self.ball, self.shots, self.events = [], [], []
 
-    def flight(self, t0: float, flight: Flight, rally: int, shot: int, side: int):
+    def flight(self, t0: float, flight: Flight, rally: int, shot: int):
         n = len(flight.times)
         self.ball.append(np.column_stack([
             np.round((t0 + flight.times) * 1e9), flight.positions, flight.velocities, flight.spins,
@@ -185,7 +185,7 @@ def simulate_rallies(n_rallies: int, rates: FaultRates, rng: np.random.Generator
                 hits[side].append(Hit(t, miss_at, normal, 3.0 * normal, float(p[0])))
                 rec.shots.append(_shot_row(rally, shot, side, t, p, v_in, v_in, w_in, normal, 3.0 * normal,
                                            intent, "miss", (np.nan, np.nan), np.full(2, np.nan), None))
-                rec.flight(t, flight, rally, shot, side)
+                rec.flight(t, flight, rally, shot)
                 t += flight.times[-1]
                 break
             target = _target(rng, side, intent)
@@ -204,12 +204,12 @@ def simulate_rallies(n_rallies: int, rates: FaultRates, rng: np.random.Generator
             rec.shots.append(_shot_row(rally, shot, side, t, p, v_in, v_out, w_out, normal, v_paddle,
                                        intent, outcome, strike, target, late))
             rec.event(t, "hit", rally, shot, p, "+y" if side > 0 else "-y")
-            rec.flight(t, flight, rally, shot, side)
+            rec.flight(t, flight, rally, shot)
             t_end = t + flight.times[-1]
             if outcome != "ok":
                 dead = _dead_ball(flight, outcome, params)
                 if dead is not None:
-                    rec.flight(t_end, dead, rally, shot, side)
+                    rec.flight(t_end, dead, rally, shot)
                     t_end += dead.times[-1]
                 t = t_end
                 break
