@@ -21,12 +21,11 @@ from pingpong.curation.segments import (
     CURATION_RULES,
     EVENT_COLUMNS,
     JOINT_XYZ,
-    PADDLE_ROTATION,
     curate_segments,
     filter_session,
     find_segments,
 )
-from pingpong.frames import FRAME_NS, MODEL_JOINT_IDS, N_INPUT
+from pingpong.frames import FRAME_NS, MODEL_JOINT_IDS, N_INPUT, ROT_COLUMNS
 from pingpong.twin.session import FaultRates, ball_positions_at, simulate_session
 
 N_FRAMES = 40
@@ -63,7 +62,7 @@ def _seen_paddles(truth, frames, rng):
     for player in ("near", "far"):
         rows = truth.paddles[truth.paddles["player"] == player]
         t = (rows["time_ns"].to_numpy() - frames[0]) * 1e-9
-        rotations = Rotation.from_matrix(rows[PADDLE_ROTATION].to_numpy().reshape(-1, 3, 3))
+        rotations = Rotation.from_matrix(rows[list(ROT_COLUMNS)].to_numpy().reshape(-1, 3, 3))
         at = np.clip((frames - frames[0]) * 1e-9, t[0], t[-1])
         valid = np.ones(len(frames), bool)
         for start in rng.integers(0, len(frames) - 2, len(frames) // 200):  # a 2-frame gap every 2 s
@@ -71,10 +70,10 @@ def _seen_paddles(truth, frames, rng):
         parts.append(pd.DataFrame({
             "time_ns": frames, "player": player,
             **{f"p{a}": np.interp(at, t, rows[f"p{a}"].to_numpy()) for a in "xyz"},
-            **dict(zip(PADDLE_ROTATION, Slerp(t, rotations)(at).as_matrix().reshape(-1, 9).T, strict=True)),
+            **dict(zip(ROT_COLUMNS, Slerp(t, rotations)(at).as_matrix().reshape(-1, 9).T, strict=True)),
             "valid": valid}))
     paddle = pd.concat(parts, ignore_index=True)
-    paddle.loc[~paddle["valid"], ["px", "py", "pz", *PADDLE_ROTATION]] = np.nan
+    paddle.loc[~paddle["valid"], ["px", "py", "pz", *ROT_COLUMNS]] = np.nan
     return paddle
 
 
@@ -89,7 +88,7 @@ def _spoil(shots, frames, pose, paddle, rng):
         if k % 2:
             rows = (paddle["player"] == shot.hitter) & gap
             paddle.loc[rows, "valid"] = False
-            paddle.loc[rows, ["px", "py", "pz", *PADDLE_ROTATION]] = np.nan
+            paddle.loc[rows, ["px", "py", "pz", *ROT_COLUMNS]] = np.nan
             spoilt[shot.t_hit_ns] = "paddle_gaps"
         else:
             pose.loc[(pose["player"] == shot.hitter) & gap, ["j04_x", "j04_y", "j04_z"]] = np.nan

@@ -32,6 +32,7 @@ BODY25 = (
 MODEL_JOINTS = ("RShoulder", "RElbow", "RWrist", "LShoulder", "LElbow", "LWrist", "RHip", "LHip")
 MODEL_JOINT_IDS = tuple(BODY25.index(j) for j in MODEL_JOINTS)
 N_INPUT = 3 * len(MODEL_JOINTS) + 3 + 9 + 3  # 39 values per frame
+ROT_COLUMNS = tuple(f"r{i}{j}" for i in range(3) for j in range(3))  # a rotation matrix, row-major
 
 
 def region_of(strike_x: np.ndarray) -> np.ndarray:

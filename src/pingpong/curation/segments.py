@@ -24,15 +24,14 @@ from pingpong.curation.labels import (
     mirror_points,
     strike_point_from_labels,
 )
-from pingpong.frames import MODEL_JOINT_IDS, STRIKE_Y, region_of
+from pingpong.frames import MODEL_JOINT_IDS, ROT_COLUMNS, STRIKE_Y, region_of
 
 PLAYER_END = {"near": "+y", "far": "-y"}  # the end of the table each player stands at
 OPPONENT_END = {"near": "-y", "far": "+y"}
 PLAYER_SIGN = {"near": 1.0, "far": -1.0}
 JOINT_XYZ = [f"j{j:02d}_{a}" for j in MODEL_JOINT_IDS for a in "xyz"]
 JOINT_VIEWS = [f"j{j:02d}_n" for j in MODEL_JOINT_IDS]
-PADDLE_ROTATION = [f"r{i}{j}" for i in range(3) for j in range(3)]
-PADDLE_VALUES = ["px", "py", "pz", *PADDLE_ROTATION]
+PADDLE_VALUES = ["px", "py", "pz", *ROT_COLUMNS]
 # pairs of model joints (positions in MODEL_JOINT_IDS) whose distance is a rigid bone or the torso's width
 BONES = ((0, 1), (1, 2), (3, 4), (4, 5), (0, 3), (6, 7), (0, 6), (3, 7))
 

@@ -18,6 +18,7 @@ from scipy.spatial.transform import Rotation, Slerp
 from pingpong.common.artifacts import Schema
 from pingpong.common.patterns import TABLE_MARKERS
 from pingpong.common.rigid import apply_transform, fit_rigid_transform, rotate_matrices
+from pingpong.frames import ROT_COLUMNS
 
 log = logging.getLogger(__name__)
 
@@ -174,7 +175,6 @@ def read_motive_csv(path: str | Path) -> dict[str, pd.DataFrame]:
     return bodies
 
 
-ROT_COLUMNS = tuple(f"r{i}{j}" for i in range(3) for j in range(3))  # row-major paddle rotation
 PADDLE = Schema("paddle", 1, ("time_ns", "player", "px", "py", "pz", *ROT_COLUMNS, "valid"))
 
 

@@ -9,6 +9,7 @@ import pandas as pd
 from scipy.spatial.transform import Rotation, Slerp
 
 from pingpong.common.camera import Camera
+from pingpong.frames import ROT_COLUMNS
 
 
 def _row(quantity: str, value: float, unit: str, threshold: float, better: str = "below") -> dict:
@@ -37,7 +38,7 @@ def paddle_rows(measured: pd.DataFrame, truth: pd.DataFrame) -> list[dict]:
         tt, mt = t["time_ns"].to_numpy(), m["time_ns"].to_numpy()
         true_pos = np.column_stack([np.interp(mt, tt, t[c].to_numpy()) for c in ("px", "py", "pz")])
         pos_err = np.linalg.norm(m[["px", "py", "pz"]].to_numpy() - true_pos, axis=1)
-        rot_cols = [f"r{i}{j}" for i in range(3) for j in range(3)]
+        rot_cols = list(ROT_COLUMNS)
         true_rot = Slerp(tt, Rotation.from_matrix(t[rot_cols].to_numpy().reshape(-1, 3, 3)))(mt)
         ang = (true_rot.inv() * Rotation.from_matrix(m[rot_cols].to_numpy().reshape(-1, 3, 3))).magnitude()
         rows.append(_row(f"paddle {player} position error (median)", 1e3 * np.median(pos_err), "mm", 2.0))

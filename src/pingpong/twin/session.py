@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from pingpong.frames import FRAME_NS, STRIKE_Y, TABLE_HALF_LENGTH
+from pingpong.frames import FRAME_NS, ROT_COLUMNS, STRIKE_Y, TABLE_HALF_LENGTH
 from pingpong.twin.ball import (
     BallParams,
     Flight,
@@ -263,7 +263,7 @@ def simulate_session(n_rallies: int, rates: FaultRates, rng: np.random.Generator
         paddles.append(pd.DataFrame({
             "time_ns": opt + epoch, "player": SIDES[side],
             **{f"p{a}": pad.paddle_pos[:, i] for i, a in enumerate("xyz")},
-            **{f"r{i}{j}": pad.paddle_rot[:, i, j] for i in range(3) for j in range(3)}}))
+            **dict(zip(ROT_COLUMNS, pad.paddle_rot.reshape(-1, 9).T, strict=True))}))
     extra = bystander_joints(frames / 1e9, rng)
     extra[~_bystander_mask(frames / 1e9, bystander_rate, rng)] = np.nan
     people.append(_people_frame(frames + epoch, "bystander", extra))

@@ -1,9 +1,9 @@
 """Schemas of the twin's ground truth (raw/twin_truth/), which only tests and accuracy reports read."""
 
 from pingpong.common.artifacts import Schema
+from pingpong.frames import ROT_COLUMNS
 
 JOINT_COLUMNS = tuple(f"j{k:02d}_{a}" for k in range(25) for a in "xyz")
-ROT_COLUMNS = tuple(f"r{i}{j}" for i in range(3) for j in range(3))
 
 BALL = Schema("twin_ball", 1, ("time_ns", "x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "rally", "shot"))
 SHOTS = Schema("twin_shots", 1,
