@@ -11,13 +11,15 @@ import numpy as np
 import pandas as pd
 
 from pingpong.common.camera import Camera
-from pingpong.twin.render import Background, PlayerLook, encode_jpeg, render_frame
+from pingpong.frames import ROT_COLUMNS
+from pingpong.twin.render import Background, PlayerLook, encode_jpeg, frame_shapes, render_shapes
 from pingpong.twin.session import SIDES, ball_positions_at
-from pingpong.twin.truth import JOINT_COLUMNS, ROT_COLUMNS
+from pingpong.twin.truth import JOINT_COLUMNS
 
 EXPOSURE_NS = 4_000_000  # 4 ms shutter: the ball moves 2-5 cm in it, hence the motion blur
 EXPOSURE_SAMPLES = 5
 DISTRACTOR_PERIOD_NS = 20_000_000_000  # the ball bucket stands by the table every other 20 s
+SHAPE_CHUNK = 256  # frames whose shapes are built at once: vectorised, in bounded memory
 
 
 def render_paddle_rotation(truth_rot: np.ndarray) -> np.ndarray:
@@ -53,15 +55,19 @@ def record_camera(camera: Camera, backgrounds: tuple[Background, Background], lo
               for p, rows in people.groupby("person", sort=False)}
     pads = _paddles_at(paddles, times)
     persons = list(SIDES.values()) + ["bystander"]
-    for i, t in enumerate(times):
-        joints = [bodies[p][i] for p in persons if not np.isnan(bodies[p][i]).all()]
-        frame_looks = [looks[k] for k, p in enumerate(persons) if not np.isnan(bodies[p][i]).all()]
-        balls = exposure[i][np.isfinite(exposure[i]).all(axis=1)]
-        background = backgrounds[int((t // DISTRACTOR_PERIOD_NS) % 2)]
-        image, truth = render_frame(background, camera, balls if len(balls) else None, joints,
-                                    [(pads[p][0][i], pads[p][1][i]) for p in SIDES.values()], rng,
-                                    looks=frame_looks)
-        yield int(t), encode_jpeg(image, jpeg_quality), {
-            "time_ns": int(t), "u": truth.pixel[0], "v": truth.pixel[1], "visibility": truth.visibility,
-            "radius_px": truth.radius_px}
+    for first in range(0, len(times), SHAPE_CHUNK):
+        chunk = slice(first, first + SHAPE_CHUNK)
+        shapes = frame_shapes(camera, [bodies[p][chunk] for p in persons], looks,
+                              [(pads[p][0][chunk], pads[p][1][chunk]) for p in SIDES.values()])
+        for i, frame in enumerate(shapes, start=first):
+            yield _camera_frame(camera, backgrounds, times[i], exposure[i], frame, rng, jpeg_quality)
+
+
+def _camera_frame(camera, backgrounds, t, exposure, shapes, rng, jpeg_quality) -> tuple[int, bytes, dict]:
+    balls = exposure[np.isfinite(exposure).all(axis=1)]
+    background = backgrounds[int((t // DISTRACTOR_PERIOD_NS) % 2)]
+    image, truth = render_shapes(background, camera, balls if len(balls) else None, shapes, rng)
+    return int(t), encode_jpeg(image, jpeg_quality), {
+        "time_ns": int(t), "u": truth.pixel[0], "v": truth.pixel[1], "visibility": truth.visibility,
+        "radius_px": truth.radius_px}
 

@@ -418,81 +418,136 @@ SHIFT = 4  # cv2 drawing fixed-point bits: 1/16 px
 MIN_DEPTH = 0.1  # nearer than this (or behind the camera) is not drawn, m
 
 
-@dataclass
+@dataclass(slots=True)
 class _Shape:
-    """One depth-sorted 2D primitive: a capsule (thick segment), a disc or a polygon, in pixels."""
+    """One depth-sorted 2D primitive: a capsule (thick segment), a disc or a polygon.
+
+    Built in bulk per body or paddle (vectorised rounding and bounds), so the per-frame loop is only
+    cv2 calls: Python overhead per shape, not drawing, was most of a frame's cost.
+    """
 
     depth: float
     kind: str
-    points: np.ndarray  # (n, 2) pixels
-    radius: float  # pixels
+    points: np.ndarray  # (n, 2) int32 pixels in cv2 fixed point (SHIFT fractional bits)
+    size: int  # capsule thickness in pixels, disc radius in fixed point, 0 for polygons
     colour: tuple
-    _bbox: tuple | None = None
-
-    def bbox(self) -> tuple[int, int, int, int]:
-        """Pixel bounds (x0, y0, x1, y1), exclusive upper."""
-        if self._bbox is None:
-            lo = np.floor(self.points.min(axis=0) - self.radius - 1).astype(int)
-            hi = np.ceil(self.points.max(axis=0) + self.radius + 2).astype(int)
-            self._bbox = (int(lo[0]), int(lo[1]), int(hi[0]), int(hi[1]))
-        return self._bbox
+    bbox: tuple[int, int, int, int]  # pixel bounds x0, y0, x1, y1 (exclusive upper)
 
     def draw(self, img: np.ndarray, colour, offset=(0, 0)) -> None:
-        pts = np.round((self.points - offset) * (1 << SHIFT)).astype(np.int32)
+        pts = self.points - (np.asarray(offset, np.int32) << SHIFT) if offset[0] or offset[1] else self.points
         if self.kind == "capsule":
-            thickness = max(1, int(round(2 * self.radius)))
-            cv2.line(img, pts[0], pts[1], colour, thickness, cv2.LINE_AA, SHIFT)
+            cv2.line(img, pts[0], pts[1], colour, self.size, cv2.LINE_AA, SHIFT)
         elif self.kind == "disc":
-            cv2.circle(img, pts[0], int(round(self.radius * (1 << SHIFT))), colour, -1, cv2.LINE_AA, SHIFT)
+            cv2.circle(img, pts[0], self.size, colour, -1, cv2.LINE_AA, SHIFT)
         else:
             cv2.fillPoly(img, [pts], colour, cv2.LINE_AA, SHIFT)
 
 
-def _body_shapes(camera: Camera, joints: np.ndarray, look: PlayerLook) -> list[_Shape]:
-    """Capsules, head and hand discs and the torso polygon of a BODY_25 skeleton (25, 3); skips NaN joints."""
-    f = camera.K[0, 0]
-    ok = np.isfinite(joints).all(axis=1)
-    head = [j for j in (0, 17, 18) if ok[j]]
-    extra = [joints[head].mean(axis=0)] if head else []
-    hands = [(e, w) for e, w in ((3, 4), (6, 7)) if ok[e] and ok[w]]
-    extra += [joints[w] + 0.4 * (joints[w] - joints[e]) for e, w in hands]
-    points = np.vstack([np.where(ok[:, None], joints, 0.0)] + [np.reshape(extra, (-1, 3))])
-    depth = camera.depth(points)
-    ok = np.concatenate([ok, np.ones(len(extra), bool)]) & (depth > MIN_DEPTH)
-    px = camera.project(points)
-    shapes = []
-    for a, b, radius, part in LIMBS:
-        if ok[a] and ok[b]:
-            z = (depth[a] + depth[b]) / 2
-            shapes.append(_Shape(z, "capsule", px[[a, b]], f * radius / z, getattr(look, part)))
-    if ok[TORSO].all():
-        shapes.append(_Shape(depth[TORSO].mean(), "poly", px[TORSO], 0.0, look.shirt))
-    for i, radius in zip(range(25, len(points)), [HEAD_RADIUS] * len(head[:1]) + [HAND_RADIUS] * len(hands),
-                         strict=True):
-        if ok[i]:
-            shapes.append(_Shape(depth[i], "disc", px[i:i + 1], f * radius / depth[i], look.skin))
-    return shapes
+def _fixed_point(px: np.ndarray) -> np.ndarray:
+    return np.round(px * (1 << SHIFT)).astype(np.int32, order="C")  # cv2 wants contiguous points
 
 
-def _paddle_shapes(camera: Camera, pos: np.ndarray, rot: np.ndarray) -> list[_Shape]:
-    """Blade (red or black side, whichever faces the camera) and handle of a paddle.
+def _bounds(px: np.ndarray, radius: np.ndarray) -> list:
+    """Pixel bounds [x0, y0, x1, y1] as nested lists (n, m, 4) of shapes with points px (n, m, k, 2)
+    and radii (n, m)."""
+    lo = np.floor(px.min(axis=2) - radius[..., None] - 1)
+    hi = np.ceil(px.max(axis=2) + radius[..., None] + 2)
+    return np.concatenate([lo, hi], axis=2).astype(int).tolist()
 
-    Paddle frame: origin at the blade centre, x across the blade, y from the handle to the tip,
-    z the normal out of the red side.
+
+def _append_shapes(frames: list[list[_Shape]], valid: np.ndarray, depth: np.ndarray, kind: str,
+                   px: np.ndarray, radius: np.ndarray, size: np.ndarray, colours: list) -> None:
+    """Append to each frame's list its valid shapes (n, m); colours per frame and shape (n, m)."""
+    depth, size, bounds = depth.tolist(), size.tolist(), _bounds(px, radius)
+    points = _fixed_point(px)
+    for i, j in zip(*np.nonzero(valid), strict=True):
+        frames[i].append(_Shape(depth[i][j], kind, points[i, j], size[i][j], colours[i][j],
+                                tuple(bounds[i][j])))
+
+
+LIMB_ENDS = np.array([(a, b) for a, b, _, _ in LIMBS])
+LIMB_RADII = np.array([r for _, _, r, _ in LIMBS])
+HEAD_JOINTS = [0, 17, 18]
+HANDS = ((3, 4), (6, 7))  # (elbow, wrist): the hand disc lies beyond the wrist
+
+
+def _body_shapes(frames: list[list[_Shape]], camera: Camera, joints: np.ndarray, look: PlayerLook) -> None:
+    """Append per frame the capsules, torso polygon, head and hand discs of BODY_25 skeletons (n, 25, 3)
+    (NaN joints are not drawn)."""
+    n, f = len(joints), camera.K[0, 0]
+    ok = np.isfinite(joints).all(axis=2)
+    head_seen = ok[:, HEAD_JOINTS]
+    head = np.where(head_seen[..., None], joints[:, HEAD_JOINTS], 0.0).sum(axis=1) \
+        / np.maximum(head_seen.sum(axis=1), 1)[:, None]
+    hand_seen = np.stack([ok[:, e] & ok[:, w] for e, w in HANDS], axis=1)
+    hands = np.stack([joints[:, w] + 0.4 * (joints[:, w] - joints[:, e]) for e, w in HANDS], axis=1)
+    points = np.concatenate([joints, head[:, None], hands], axis=1)
+    seen = np.concatenate([ok, head_seen.any(axis=1, keepdims=True), hand_seen], axis=1)
+    points = np.where(seen[..., None], points, 0.0)
+    depth = camera.depth(points.reshape(-1, 3)).reshape(n, -1)
+    seen &= depth > MIN_DEPTH
+    z = np.where(seen, depth, 1.0)
+    px = camera.project(points.reshape(-1, 3)).reshape(n, -1, 2)
+
+    limb_z = z[:, LIMB_ENDS].mean(axis=2)
+    radius = f * LIMB_RADII / limb_z
+    thickness = np.maximum(1, np.round(2 * radius)).astype(int)
+    colours = [[getattr(look, part) for *_, part in LIMBS]] * n
+    _append_shapes(frames, seen[:, LIMB_ENDS].all(axis=2), limb_z, "capsule", px[:, LIMB_ENDS], radius,
+                   thickness, colours)
+    torso_z = z[:, TORSO].mean(axis=1, keepdims=True)
+    _append_shapes(frames, seen[:, TORSO].all(axis=1, keepdims=True), torso_z, "poly", px[:, None, TORSO],
+                   np.zeros((n, 1)), np.zeros((n, 1), int), [[look.shirt]] * n)
+    disc_radius = f * np.array([HEAD_RADIUS, HAND_RADIUS, HAND_RADIUS]) / z[:, 25:]
+    _append_shapes(frames, seen[:, 25:], z[:, 25:], "disc", px[:, 25:, None], disc_radius,
+                   np.round(disc_radius * (1 << SHIFT)).astype(int), [[look.skin] * 3] * n)
+
+
+PADDLE_ANGLES = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+PADDLE_OUTLINE = np.vstack([  # paddle frame: blade rim (24 points), then the handle's two ends
+    np.stack([PADDLE_HALF_WIDTH * np.cos(PADDLE_ANGLES), PADDLE_HALF_HEIGHT * np.sin(PADDLE_ANGLES),
+              np.zeros_like(PADDLE_ANGLES)], axis=1),
+    [[0, -PADDLE_HALF_HEIGHT, 0], [0, -PADDLE_HALF_HEIGHT - HANDLE_LENGTH, 0]]])
+
+
+def _paddle_shapes(frames: list[list[_Shape]], camera: Camera, pos: np.ndarray, rot: np.ndarray) -> None:
+    """Append per frame a paddle's blade (red or black side, whichever faces the camera) and handle;
+    pos (n, 3), rot (n, 3, 3). Paddle frame: origin at the blade centre, x across the blade, y from the
+    handle to the tip, z the normal out of the red side."""
+    n = len(pos)
+    known = np.isfinite(pos).all(axis=1) & np.isfinite(rot).all(axis=(1, 2))
+    pos, rot = np.where(known[:, None], pos, 0.0), np.where(known[:, None, None], rot, np.eye(3))
+    points = pos[:, None] + np.einsum("kj,nij->nki", PADDLE_OUTLINE, rot)
+    depth = camera.depth(points.reshape(-1, 3)).reshape(n, -1)
+    drawn = known & (depth > MIN_DEPTH).all(axis=1)
+    depth = np.where(drawn[:, None], depth, 1.0)
+    px = camera.project(points.reshape(-1, 3)).reshape(n, -1, 2)
+    blade_z = depth[:, :24].mean(axis=1, keepdims=True)
+    red = np.einsum("ni,ni->n", rot[:, :, 2], camera.center - pos) > 0
+    _append_shapes(frames, drawn[:, None], blade_z, "poly", px[:, None, :24], np.zeros((n, 1)),
+                   np.zeros((n, 1), int), [[RED_RUBBER if r else BLACK_RUBBER] for r in red])
+    radius = camera.K[0, 0] * HANDLE_RADIUS / blade_z  # sized at the blade's depth
+    _append_shapes(frames, drawn[:, None], depth[:, 24:].mean(axis=1, keepdims=True), "capsule",
+                   px[:, None, 24:], radius, np.maximum(1, np.round(2 * radius)).astype(int), [[HANDLE]] * n)
+
+
+def frame_shapes(camera: Camera, bodies: Sequence[np.ndarray], looks: Sequence[PlayerLook],
+                 paddles: Sequence[tuple[np.ndarray, np.ndarray]]) -> list[list[_Shape]]:
+    """Per frame, the depth-sorted (farthest first) shapes of people and paddles over n frames at once.
+
+    bodies: BODY_25 joints (n, 25, 3) per person, table frame, NaN where not drawn; looks: one per
+    person; paddles: (positions (n, 3), rotations (n, 3, 3)) per paddle. Vectorised over frames: per
+    shape, Python and small-array overhead cost more than the drawing itself.
     """
-    angles = np.linspace(0, 2 * np.pi, 24, endpoint=False)
-    local = np.vstack([np.stack([PADDLE_HALF_WIDTH * np.cos(angles), PADDLE_HALF_HEIGHT * np.sin(angles),
-                                 np.zeros_like(angles)], axis=1),
-                       [[0, -PADDLE_HALF_HEIGHT, 0], [0, -PADDLE_HALF_HEIGHT - HANDLE_LENGTH, 0]]])
-    points = pos + local @ rot.T
-    depth = camera.depth(points)
-    if (depth <= MIN_DEPTH).any():
-        return []
-    px = camera.project(points)
-    blade = RED_RUBBER if rot[:, 2] @ (camera.center - pos) > 0 else BLACK_RUBBER
-    z = depth[:24].mean()
-    return [_Shape(z, "poly", px[:24], 0.0, blade),
-            _Shape(depth[24:].mean(), "capsule", px[24:], camera.K[0, 0] * HANDLE_RADIUS / z, HANDLE)]
+    n = len(bodies[0]) if len(bodies) else len(paddles[0][0]) if len(paddles) else 0
+    frames: list[list[_Shape]] = [[] for _ in range(n)]
+    for joints, look in zip(bodies, looks, strict=False):
+        _body_shapes(frames, camera, np.asarray(joints, float), look)
+    for pos, rot in paddles:
+        _paddle_shapes(frames, camera, np.asarray(pos, float), np.asarray(rot, float))
+    for shapes in frames:
+        shapes.sort(key=lambda shape: -shape.depth)
+    return frames
 
 
 @dataclass(frozen=True)
@@ -586,7 +641,7 @@ def _restore_table(image: np.ndarray, background: Background, shape: _Shape) -> 
     tx0, ty0, tx1, ty1, nearest = background.table_box
     if shape.depth <= nearest:
         return
-    x0, y0, x1, y1 = shape.bbox()
+    x0, y0, x1, y1 = shape.bbox
     x0, y0, x1, y1 = max(x0, tx0), max(y0, ty0), min(x1, tx1), min(y1, ty1)
     if x1 <= x0 or y1 <= y0:
         return
@@ -596,7 +651,7 @@ def _restore_table(image: np.ndarray, background: Background, shape: _Shape) -> 
 
 
 def _overlaps(shape: _Shape, x0: int, y0: int, w: int, h: int) -> bool:
-    sx0, sy0, sx1, sy1 = shape.bbox()
+    sx0, sy0, sx1, sy1 = shape.bbox
     return sx0 < x0 + w and sy0 < y0 + h and sx1 > x0 and sy1 > y0
 
 
@@ -613,13 +668,15 @@ def render_frame(background: Background, camera: Camera, ball_positions: np.ndar
     """
     if looks is None:
         looks = make_player_looks(np.random.default_rng(0), len(players_joints))
-    shapes: list[_Shape] = []
-    for joints, look in zip(players_joints, looks, strict=False):
-        shapes += _body_shapes(camera, np.asarray(joints, float), look)
-    for pos, rot in paddles:
-        shapes += _paddle_shapes(camera, np.asarray(pos, float), np.asarray(rot, float))
-    shapes.sort(key=lambda shape: -shape.depth)
+    shapes = frame_shapes(camera, [np.asarray(j, float)[None] for j in players_joints], looks,
+                          [(np.asarray(p, float)[None], np.asarray(r, float)[None]) for p, r in paddles])
+    return render_shapes(background, camera, ball_positions, shapes[0] if shapes else [], rng, noise=noise)
 
+
+def render_shapes(background: Background, camera: Camera, ball_positions: np.ndarray | None,
+                  shapes: Sequence[_Shape], rng: np.random.Generator, *,
+                  noise: bool = True) -> tuple[np.ndarray, BallTruth]:
+    """render_frame with the people and paddles already turned into depth-sorted shapes (frame_shapes)."""
     image = background.image.copy()
     truth = BallTruth(np.full(2, np.nan), 0.0, 0.0)
     layer, ball_depth = None, -np.inf
@@ -637,7 +694,7 @@ def render_frame(background: Background, camera: Camera, ball_positions: np.ndar
         shape.draw(image, shape.colour)
         _restore_table(image, background, shape)
         if occluders is not None and _overlaps(shape, layer[0], layer[1], *occluders.shape[::-1]):
-            shape.draw(occluders, 255, offset=np.array(layer[:2]))
+            shape.draw(occluders, 255, offset=layer[:2])
     if layer is not None:
         if occluders is None:
             occluders = _composite_ball(image, layer)
