@@ -24,6 +24,8 @@ include: "workflow/rules/twin.smk"
 include: "workflow/rules/perception.smk"
 include: "workflow/rules/curation.smk"
 include: "workflow/rules/learning.smk"
+include: "workflow/rules/uncertainty.smk"
+include: "workflow/rules/robot.smk"
 
 
 rule all:
@@ -34,5 +36,7 @@ rule all:
         "reports/tables/curation.md",
         "reports/tables/cv_results.md",
         "reports/tables/strike_error.md",
+        "reports/tables/uncertainty.md",
+        "reports/tables/robot.md",
         twin_reports(),
     default_target: True

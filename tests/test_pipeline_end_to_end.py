@@ -48,3 +48,46 @@ def test_learning_outputs_predictions_for_every_held_out_hit_and_frame(tiny_run)
     table = pd.read_csv(tiny_run / "reports/tables/strike_error.csv")
     assert set(table["model"]) == {"final", "ball_only", "mean"}
     assert (tiny_run / "reports/figures/strike_error.png").stat().st_size > 1000
+
+
+def test_uncertainty_tables_for_every_estimator_held_out_hit_and_frame(tiny_run):
+    from pingpong.uncertainty.tables import ESTIMATORS
+
+    dataset = pd.read_parquet(tiny_run / "processed/dataset.parquet")
+    held_out = (dataset["split"] != "train").sum()
+    assert len(list((tiny_run / "processed/models/ensemble").glob("member*.safetensors"))) == 2
+    for name in ESTIMATORS:
+        table = pd.read_parquet(tiny_run / f"processed/uncertainty/{name}.parquet")
+        assert len(table) == 30 * held_out and set(table["split"]) <= {"calibration", "test"}, name
+        assert (table["uncertainty"] >= 0).all(), name  # +inf where too few calibration hits
+        interval = table["lower"].notna()
+        assert (table.loc[interval, "lower"] <= table.loc[interval, "upper"]).all(), name
+    assert (tiny_run / "processed/uncertainty/quantile_heads.safetensors").is_file()
+    report = pd.read_csv(tiny_run / "reports/tables/uncertainty.csv")
+    assert list(report["estimator"]) == list(ESTIMATORS)
+    for figure in ("error_vs_uncertainty", "error_vs_frames", "sparsification"):
+        assert (tiny_run / f"reports/figures/uncertainty_{figure}.png").stat().st_size > 1000
+
+
+def test_robot_simulates_every_test_hit_per_controller_within_the_limits(tiny_run):
+    dataset = pd.read_parquet(tiny_run / "processed/dataset.parquet")
+    test_hits = dataset.loc[dataset["split"] == "test", ["session", "rally", "hit"]]
+    table = pd.read_csv(tiny_run / "reports/tables/robot.csv")
+    controllers = ["servo", "anticipatory", "uncertainty_aware", "confidence_scaled"]
+    assert list(table["controller"].unique()) == controllers
+    for controller in controllers:
+        sim = pd.read_parquet(tiny_run / f"processed/sim/{controller}.parquet")
+        assert len(sim) == len(test_hits)
+        simulated = set(map(tuple, sim[["session", "rally", "hit"]].to_numpy()))
+        assert simulated == set(map(tuple, test_hits.to_numpy()))
+        assert sim["limits_ok"].all()  # no limit exceeded at any step of any test episode
+        assert (sim["hit_ball"] == (sim["end_distance_m"] <= 0.08)).all()
+        choice = json.loads((tiny_run / f"processed/sim/{controller}.json").read_text())
+        assert choice["controller"] == controller
+        all_row = table[(table["controller"] == controller) & (table["region"] == "all")].iloc[0]
+        assert all_row["total"] == len(sim) and all_row["hits"] == sim["hit_ball"].sum()
+    sweep = json.loads((tiny_run / "processed/sim/uncertainty_aware.json").read_text())["sweep"]
+    assert len(sweep) == 25  # the default 5 x 5 alpha grid
+    limits = pd.read_csv(tiny_run / "reports/tables/robot_limits.csv")
+    arm = limits[limits["joint"].str.startswith("iiwa")]
+    assert (arm["headroom"] > 1).all()  # the accelerations used are reachable within the torques everywhere

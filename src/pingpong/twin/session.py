@@ -39,10 +39,10 @@ LOWEST_HIT_Z = 0.0  # m: a ball lower than the table surface at the hitting plan
 
 @dataclass(frozen=True)
 class FaultRates:
-    net: float = 0.05
-    out: float = 0.05
-    double_bounce: float = 0.02
-    miss: float = 0.05
+    net: float = 0.02
+    out: float = 0.02
+    double_bounce: float = 0.01
+    miss: float = 0.02
 
 
 @dataclass

@@ -1,0 +1,179 @@
+"""The robot stage: flights from the filtered ball, the controllers' alpha schedules, the sweep, the
+report's statistics, and the torque-derived accelerations against a hand computation."""
+
+from dataclasses import replace
+
+import numpy as np
+import pandas as pd
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from pingpong.frames import STRIKE_Y
+from pingpong.reports.robot import bootstrap_hit_difference, mcnemar_exact, robot_table
+from pingpong.robot.episode import EpisodeParams
+from pingpong.robot.evaluate import (
+    Controller,
+    Prediction,
+    SimSettings,
+    confidence_ramp,
+    simulate_hit,
+    step_alphas,
+)
+from pingpong.robot.flights import hit_flight
+from pingpong.robot.model import N_BASE, load_robot, worst_case_accelerations
+from pingpong.robot.sweep import alpha_grid, best_cell, sweep
+
+ROBOT = load_robot()
+FRAMES = np.arange(-30, 0)
+
+
+def straight_flight(x: float, z: float, t_cross: float, y0: float = 1.6):
+    """A ball at constant velocity along -y (no gravity, no bounce): the servo's quadratic fit is exact."""
+    t = np.arange(0.0, t_cross + 0.05, 0.01)
+    return t, np.column_stack([np.full_like(t, x), y0 + (STRIKE_Y - y0) / t_cross * t, np.full_like(t, z)])
+
+
+def perfect(x: float, uncertainty: float | None = None) -> Prediction:
+    return Prediction(FRAMES, np.full(30, x), None if uncertainty is None else np.full(30, uncertainty))
+
+
+# ---------------------------------------------------------------- flights
+
+def test_far_hitters_flight_is_mirrored_gaps_dropped_and_cut_past_the_strike_line():
+    t_hit = 1_000_000_000
+    time_ns = t_hit + 10_000_000 * np.arange(-5, 120)
+    t = (time_ns - t_hit) / 1e9
+    ball = pd.DataFrame({"time_ns": time_ns, "x": 0.1 + 0.2 * t, "y": -1.5 + 5.0 * t, "z": 0.3 + 0 * t})
+    ball.loc[10, "x"] = np.nan  # a frame without a ball
+    times, positions = hit_flight(ball, t_hit, "far")
+    assert times[0] == 0.0 and np.all(np.diff(times) > 0) and 0.05 not in times
+    assert np.allclose(positions[:, 0], -(0.1 + 0.2 * times))
+    assert np.allclose(positions[:, 1], 1.5 - 5 * times)
+    assert positions[-1, 1] <= STRIKE_Y < positions[-2, 1]  # one sample past the line, no more
+    near_times, near = hit_flight(ball.assign(y=1.5 - 5.0 * t), t_hit, "near")
+    assert np.allclose(near, positions * [-1, 1, 1]) and np.array_equal(near_times, times)
+
+
+# ---------------------------------------------------------------- controllers
+
+def test_servo_hits_a_straight_ball_to_a_reachable_point():
+    for x, z in [(0.3, 0.3), (-0.4, 0.2), (0.0, 0.1)]:
+        out = simulate_hit(ROBOT, *straight_flight(x, z, 0.7), perfect(x), Controller("servo"))
+        assert out["hit"] and out["end_distance_m"] < 0.01  # the servo's estimate is exact here
+        assert out["limits_ok"] and not out["anticipated"]
+
+
+def test_perfect_anticipation_hits_far_goals_that_servoing_alone_misses():
+    flights = [(0.6, 0.2), (-0.7, 0.2), (0.65, 0.15), (-0.6, 0.25)]
+    hits = {"servo": 0, "anticipatory": 0}
+    for x, z in flights:
+        for controller in (Controller("servo"), Controller("anticipatory", 1.0, 1.0)):
+            out = simulate_hit(ROBOT, *straight_flight(x, z, 0.45), perfect(x), controller)
+            assert out["limits_ok"]
+            hits[controller.name] += out["hit"]
+    assert hits["servo"] == 0 and hits["anticipatory"] == len(flights)
+
+
+def test_step_alphas_follow_each_controllers_rule():
+    params = EpisodeParams()
+    times = np.round(np.arange(-0.1, 0.5, 0.01), 10)
+    x = np.where(FRAMES < -15, 0.6, 0.1)  # outside the centre until frame -16, then inside
+    uncertainty = np.where(FRAMES < -5, 0.30, 0.05)
+    prediction = Prediction(FRAMES, x, uncertainty)
+    first_servo = 0.2
+    latest = lambda t: FRAMES[FRAMES * 0.01 + 0.1 <= t + 1e-12][-1]  # noqa: E731 latest usable frame
+    aware = step_alphas(times, first_servo, prediction, Controller("u", 0.7, 0.4, skip_centre=True), params)
+    scaled = step_alphas(times, first_servo, prediction, Controller("c", 1, 1, confidence=(0.1, 0.2)), params)
+    for t, a, c in zip(times, aware, scaled, strict=True):
+        if t >= first_servo - 1e-12:
+            assert a == c == 1.0
+            continue
+        frame = latest(t)
+        assert a == pytest.approx((0.7 if t < -1e-12 else 0.4) * (frame < -15))
+        assert c == (1.0 if frame >= -5 else 0.0)
+
+
+@settings(max_examples=100)
+@given(st.floats(0.0, 1.0), st.floats(0.0, 1.0), st.lists(st.floats(0.0, 2.0), min_size=2, max_size=20))
+def test_confidence_ramp_is_a_monotone_map_into_0_1(a, b, u):
+    u_full, u_zero = min(a, b), max(a, b)
+    u = np.sort(np.array(u))
+    alpha = confidence_ramp(u, u_full, u_zero)
+    assert np.all((alpha >= 0) & (alpha <= 1)) and np.all(np.diff(alpha) <= 1e-12)
+    assert np.all(alpha[u <= u_full] == 1.0) and np.all(alpha[u > u_zero] == 0.0)
+
+
+# ---------------------------------------------------------------- sweep
+
+def test_best_cell_maximises_hits_then_minimises_distance_then_takes_the_first():
+    table = pd.DataFrame({"hits": [3, 5, 5, 5, 1], "mean_end_distance_m": [0.01, 0.2, 0.1, 0.1, np.nan]})
+    assert best_cell(table) == 2
+
+
+def test_sweep_picks_the_alphas_that_hit_the_far_goals():
+    goals = [(0.6, 0.2), (-0.7, 0.2), (0.3, 0.3)]
+    flights = [straight_flight(x, z, 0.45 if abs(x) > 0.5 else 0.7) for x, z in goals]
+    hits = pd.DataFrame({"session": "s", "rally": 0, "hit": range(3), "region": "x", "strike_x": 0.0,
+                         "strike_z": 0.0})
+    chosen, table = sweep(ROBOT, hits, flights, [perfect(x) for x, _ in goals], alpha_grid("u", [0.0, 1.0]),
+                          SimSettings())
+    assert len(table) == 4 and table["hits"].max() == 3
+    assert table.loc[(table["alpha1"] == 0) & (table["alpha2"] == 0), "hits"].item() == 1  # servo: slow only
+    row = table[(table["alpha1"] == chosen.alpha1) & (table["alpha2"] == chosen.alpha2)].iloc[0]
+    assert row["hits"] == 3 and chosen.skip_centre
+
+
+# ---------------------------------------------------------------- report statistics
+
+def test_mcnemar_exact_and_bootstrap_on_closed_forms():
+    base = np.array([False] * 5 + [True] * 3)
+    better = np.array([True] * 5 + [True] * 3)
+    assert mcnemar_exact(base, better) == pytest.approx(2 * 0.5**5)  # 5 discordant pairs, all one way
+    assert mcnemar_exact(base, base) == 1.0
+    rng = np.random.default_rng(0)
+    assert bootstrap_hit_difference(base, base, rng) == (0.0, 0.0)
+    low, high = bootstrap_hit_difference(base, better, rng, n_boot=4000)
+    assert 0 < low <= 5 <= high <= 8  # the observed +5 lies inside
+
+
+def test_robot_table_regions_add_up_and_compare_against_servo():
+    keys = pd.DataFrame({"session": "s", "rally": 0, "hit": range(6),
+                         "region": ["left", "left", "centre", "right", "right", "right"]})
+    sim = lambda hit: keys.assign(hit_ball=hit, end_distance_m=np.linspace(0.01, 0.3, 6),  # noqa: E731
+                                  limits_ok=True)
+    table = robot_table({"servo": sim([1, 0, 1, 0, 0, 0]), "anticipatory": sim([1, 1, 1, 1, 1, 0])},
+                        np.random.default_rng(1), 500)
+    for _, rows in table.groupby("controller"):
+        regions = rows.set_index("region")
+        assert regions.loc["all", "total"] == regions.loc[["left", "centre", "right"], "total"].sum() == 6
+        assert regions.loc["all", "hits"] == regions.loc[["left", "centre", "right"], "hits"].sum()
+    all_rows = table[table["region"] == "all"].set_index("controller")
+    assert all_rows.loc["anticipatory", "hits_minus_servo"] == 3
+    assert all_rows.loc["anticipatory", "mcnemar_p"] == pytest.approx(0.25)  # 3 discordant, one way
+    assert all_rows.loc["servo", "hits_minus_servo"] == 0
+    d = 100 * np.linspace(0.01, 0.3, 6)
+    assert all_rows.loc["servo", "end_distance_mean_cm"] == pytest.approx(d.mean())
+    assert all_rows.loc["servo", "end_distance_half_std_cm"] == pytest.approx(0.5 * d.std())
+
+
+# ---------------------------------------------------------------- torque-derived accelerations
+
+def test_derived_accelerations_at_the_upright_arm_match_a_hand_computation():
+    """Arm straight up (q = 0), at rest: joints 1 and 7 turn about the vertical, so gravity loads neither and
+    the reachable acceleration is tau_max / M_ii, with M_ii = sum over the links it carries of
+    izz + m (x^2 + y^2) (every link frame aligned with the table at q = 0; URDF inertials below)."""
+    # (mass kg, com x, com y, izz) of links 1..7 and the paddle, from config/robot/iiwa14_ridgeback.urdf
+    links = [(5.76, 0, -0.03, 0.0123), (6.35, -0.0003, 0.042, 0.0304), (3.5, 0, 0.03, 0.0076),
+             (3.5, 0, -0.034, 0.0164), (3.5, -0.0001, -0.021, 0.00449), (1.8, 0, 0.0004, 0.0047),
+             (1.2, 0, 0, 0.001), (0.2, 0, 0, 0.00064)]
+    inertia_about_z = [izz + m * (x * x + y * y) for m, x, y, izz in links]
+    q0 = np.zeros(ROBOT.model.nq)
+    pinned = replace(ROBOT, q_min=q0, q_max=q0)  # every sample is the upright arm
+    acc = worst_case_accelerations(pinned, np.random.default_rng(0), n_samples=3, with_velocity=False)
+    assert acc["simple_min"][0] == pytest.approx(320.0 / sum(inertia_about_z), rel=1e-9)
+    assert acc["simple_min"][6] == pytest.approx(40.0 / sum(inertia_about_z[6:]), rel=1e-9)
+    assert acc["coupled_min"][6] == pytest.approx(acc["simple_min"][6], rel=1e-9)  # no coupling about z
+    sampled = worst_case_accelerations(ROBOT, np.random.default_rng(1), n_samples=200)
+    assert np.all(sampled["coupled_min"] > 0)
+    assert np.all(ROBOT.a_max[N_BASE:] < sampled["coupled_min"])

@@ -1,0 +1,192 @@
+"""Uncertainty estimators and metrics: conformal coverage within its finite-sample bounds on synthetic
+exchangeable data, rank metrics against hand-computed cases, and the estimators wired on a toy dataset."""
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from pingpong.learning.models import FRAMES_BEFORE_HIT
+from pingpong.uncertainty.conformal import (
+    conformal_quantile,
+    cqr_scores,
+    mondrian_quantiles,
+    normalised_scores,
+)
+from pingpong.uncertainty.features import frame_features
+from pingpong.uncertainty.knn import fit_knn, predict_knn
+from pingpong.uncertainty.metrics import ause, interval_metrics, sparsification, spearman, within_frames
+from pingpong.uncertainty.quantile_heads import fit_quantile_heads, predict_quantiles
+from pingpong.uncertainty.tables import ESTIMATORS
+from pingpong.uncertainty.time_to_hit import fit_trend, trend
+
+ALPHA = 0.1
+TRIALS = 400  # calibration draws; each trial's coverage is measured on its own test points
+
+
+def _bounds(n_cal: int, spread: np.ndarray) -> tuple[float, float]:
+    """Split conformal with n exchangeable calibration scores (no ties): 1 - alpha <= E[coverage] <=
+    1 - alpha + 1/(n + 1); widened by 4 standard errors of the mean over TRIALS trials."""
+    slack = 4 * spread.std() / math.sqrt(len(spread))
+    return 1 - ALPHA - slack, 1 - ALPHA + 1 / (n_cal + 1) + slack
+
+
+def test_split_conformal_coverage_within_the_finite_sample_bound():
+    rng = np.random.default_rng(0)
+    n_cal, n_test = 50, 200
+    errors = np.abs(rng.standard_t(3, size=(TRIALS, n_cal + n_test)))  # heavy-tailed |y - y_hat|
+    q = np.array([conformal_quantile(e[:n_cal], ALPHA) for e in errors])
+    covered = (errors[:, n_cal:] <= q[:, None]).mean(axis=1)
+    low, high = _bounds(n_cal, covered)
+    assert low <= covered.mean() <= high
+    # with one score per hit the quantile is the ceil((1 - alpha)(n + 1))-th smallest
+    assert q[0] == np.sort(errors[0, :n_cal])[math.ceil((1 - ALPHA) * (n_cal + 1)) - 1]
+
+
+def test_hit_grouped_conformal_covers_dependent_frames():
+    """30 strongly dependent frames per hit (a random hit effect): calibrating by hit keeps
+    E[share of a test hit's frames covered] >= 1 - alpha with 20 calibration hits (conformal.py)."""
+    rng = np.random.default_rng(1)
+    n_cal, n_test, k = 20, 40, 30
+    scale = rng.lognormal(0, 0.8, size=(TRIALS, n_cal + n_test, 1))  # per-hit difficulty
+    errors = scale * np.abs(rng.normal(size=(TRIALS, n_cal + n_test, k)))
+    groups = np.repeat(np.arange(n_cal), k)
+    q = np.array([conformal_quantile(e[:n_cal].ravel(), ALPHA, groups) for e in errors])
+    covered = (errors[:, n_cal:] <= q[:, None, None]).mean(axis=(1, 2))
+    assert covered.mean() >= 1 - ALPHA - 4 * covered.std() / math.sqrt(TRIALS)
+    assert covered.mean() <= 1 - ALPHA + 0.05  # not trivially wide
+    with pytest.raises(ValueError):
+        conformal_quantile([0.1, np.nan], ALPHA)
+    assert conformal_quantile(np.ones(60), ALPHA, np.repeat(np.arange(2), 30)) == np.inf  # 2 hits < 9
+
+
+def test_mondrian_covers_every_frame_where_one_width_does_not():
+    rng = np.random.default_rng(2)
+    n_cal, n_test = 40, 100
+    frame_scale = np.array([0.05, 0.2, 0.8])  # error grows with the time before the hit
+    cal = np.abs(rng.normal(size=(TRIALS, 3, n_cal))) * frame_scale[:, None]
+    test = np.abs(rng.normal(size=(TRIALS, 3, n_test))) * frame_scale[:, None]
+    strata = np.repeat(np.arange(3), n_cal)
+    per_frame, pooled = [], []
+    for c, t in zip(cal, test, strict=True):
+        qs = mondrian_quantiles(c.ravel(), strata, ALPHA)
+        per_frame.append([(t[f] <= qs[f]).mean() for f in range(3)])
+        pooled.append((t <= conformal_quantile(c.ravel(), ALPHA)).mean(axis=1))
+    per_frame, pooled = np.array(per_frame), np.array(pooled)
+    for f in range(3):
+        low, high = _bounds(n_cal, per_frame[:, f])
+        assert low <= per_frame[:, f].mean() <= high
+    assert pooled[:, 2].mean() < 0.8  # one width under-covers the hardest frame
+
+
+def test_normalised_and_cqr_coverage_within_the_bound_and_adaptive_widths():
+    rng = np.random.default_rng(3)
+    n_cal, n_test = 50, 200
+    sigma = rng.uniform(0.05, 0.5, size=(TRIALS, n_cal + n_test))  # a known difficulty
+    y = sigma * rng.normal(size=sigma.shape)  # residual around y_hat = 0
+    norm_cov, cqr_cov, widths = [], [], []
+    for s, r in zip(sigma, y, strict=True):
+        q = conformal_quantile(normalised_scores(np.abs(r[:n_cal]), s[:n_cal]), ALPHA)
+        norm_cov.append(np.mean(np.abs(r[n_cal:]) <= q * s[n_cal:]))
+        widths.append(2 * q * s[n_cal:])
+        lo, hi = -0.5 * s, 0.5 * s  # too-narrow quantile heads: CQR widens them by q
+        q_cqr = conformal_quantile(cqr_scores(r[:n_cal], lo[:n_cal], hi[:n_cal]), ALPHA)
+        cqr_cov.append(np.mean((lo[n_cal:] - q_cqr <= r[n_cal:]) & (r[n_cal:] <= hi[n_cal:] + q_cqr)))
+    for covered in (np.array(norm_cov), np.array(cqr_cov)):
+        low, high = _bounds(n_cal, covered)
+        assert low <= covered.mean() <= high
+    metrics = interval_metrics(np.zeros(n_test), -widths[0] / 2, widths[0] / 2)
+    assert metrics["width_cv"] > 0.3 and metrics["coverage"] == 1.0
+
+
+def test_quantile_heads_learn_heteroscedastic_quantiles():
+    rng = np.random.default_rng(4)
+    x = rng.uniform(0, 1, size=(2000, 1))
+    y = (0.05 + 0.3 * x[:, 0]) * rng.normal(size=2000)
+    heads = fit_quantile_heads(x, y, (0.05, 0.95), rng, epochs=400)
+    q = predict_quantiles(heads, np.array([[0.1], [0.9]]))
+    expected = 1.645 * (0.05 + 0.3 * np.array([0.1, 0.9]))
+    assert np.allclose(q[:, 1], expected, rtol=0.25) and np.allclose(q[:, 0], -expected, rtol=0.25)
+
+
+def test_spearman_and_within_frame_hand_computed():
+    assert spearman([1, 2, 3, 4], [1, 3, 2, 4]) == pytest.approx(1 - 6 * 2 / (4 * 15))  # sum d^2 = 2
+    assert math.isnan(spearman([2, 2, 2, 2], [1, 3, 2, 4]))  # constant: no ranking
+    frames = np.array([1, 1, 1, 2, 2, 2])
+    u = np.array([1, 2, 3, 1, 2, 3])
+    e = np.array([1, 2, 3, 3, 2, 1])
+    assert within_frames(spearman, u, e, frames) == pytest.approx(0.0)  # +1 and -1
+    assert math.isnan(within_frames(spearman, frames, e, frames))  # time alone says nothing within a frame
+
+
+def test_sparsification_and_ause_hand_computed():
+    e = np.array([1.0, 2.0, 3.0, 4.0])
+    fractions = np.array([0.0, 0.25, 0.5, 0.75])
+    curve, oracle = sparsification(4 - e, e, fractions)  # the worst ranking: most sure of the largest errors
+    assert np.allclose(curve, np.array([2.5, 3.0, 3.5, 4.0]) / 2.5)
+    assert np.allclose(oracle, np.array([2.5, 2.0, 1.5, 1.0]) / 2.5)
+    assert ause(4 - e, e, fractions) == pytest.approx(0.25 * (0.5 + 1.5 + 2.5) / 2.5)
+    assert ause(e, e) == 0.0
+    flat, _ = sparsification(np.ones(4), e, fractions)  # ties count at their expected value
+    assert np.allclose(flat, 1.0)
+    rng = np.random.default_rng(5)
+    errors = rng.exponential(size=4000)
+    assert ause(rng.uniform(size=4000), errors) > 0.2
+    assert ause(errors + rng.normal(0, 0.1, 4000), errors) < 0.1
+
+
+@given(st.lists(st.floats(0, 10), min_size=1, max_size=40), st.floats(0.01, 0.98), st.floats(0.01, 0.98))
+def test_conformal_quantile_monotone_in_alpha_and_non_negative(scores, a, b):
+    low, high = sorted((a, b))
+    assert conformal_quantile(scores, high) <= conformal_quantile(scores, low)
+    assert conformal_quantile(scores, high) >= 0
+
+
+@given(st.lists(st.tuples(st.floats(0, 5), st.floats(0, 5)), min_size=2, max_size=60))
+def test_ause_is_non_negative(pairs):
+    u, e = np.array(pairs).T
+    assert ause(u, e) >= -1e-12
+
+
+def test_knn_time_trend_and_features():
+    model = fit_knn(np.array([[0.0], [1.0], [10.0]]), np.array([0.1, 0.2, 0.9]), k=1)
+    assert np.allclose(predict_knn(model, np.array([[0.2], [9.0]])), [0.1, 0.9])
+    frames = np.tile(np.arange(1, 31), 3)
+    intercept, slope = fit_trend(frames, 0.05 + 0.01 * frames)
+    assert (intercept, slope) == (pytest.approx(0.05), pytest.approx(0.01))
+    assert trend(0.05, -0.01, [1, 10]).tolist() == [pytest.approx(0.04), 0.0]
+    X = np.random.default_rng(6).normal(size=(2, 40, 39))
+    F = frame_features(X, FRAMES_BEFORE_HIT)
+    j = 5  # row n * 30 + j is FRAMES_BEFORE_HIT[j] frames before the hit
+    f = FRAMES_BEFORE_HIT[j]
+    assert F.shape == (60, 79) and np.allclose(F[30 + j, :39], X[1, 39 - f])
+    assert np.allclose(F[30 + j, 39:78], 100 * (X[1, 39 - f] - X[1, 38 - f])) and F[30 + j, 78] == f
+
+
+def test_fit_estimators_on_a_toy_dataset():
+    from pingpong.uncertainty.estimators import fit_estimators, frame_rows
+
+    rng = np.random.default_rng(7)
+    n = 60
+    split = np.array(["train"] * 30 + ["calibration"] * 15 + ["test"] * 15)
+    dataset = pd.DataFrame({"session": "s00", "rally": np.arange(n), "hit": np.arange(n), "split": split,
+                            "strike_x": rng.uniform(-0.7, 0.7, n)})
+    X = rng.normal(size=(n, 40, 39))
+    rows = frame_rows(dataset, pd.DataFrame({
+        "model": "final", "session": "s00", "rally": np.repeat(np.arange(n), 30),
+        "hit": np.repeat(np.arange(n), 30), "frames_before_hit": np.tile(FRAMES_BEFORE_HIT, n),
+        "a1": 0.0, "a2": 0.0, "b": 0.0, "strike_x_pred": rng.normal(0, 0.3, 30 * n)}))
+    ensemble = rows["strike_x_pred"].to_numpy() + rng.normal(0, 0.05, size=(3, len(rows)))
+    tables, fitted, knn, heads = fit_estimators(rows, frame_features(X, FRAMES_BEFORE_HIT), ensemble, 0.9, 5,
+                                                {"epochs": 20}, rng)
+    assert set(tables) == set(ESTIMATORS) and knn.k == 5
+    for name, table in tables.items():
+        assert len(table) == 30 * 30 and set(table["split"]) == {"calibration", "test"}
+        assert (table["uncertainty"] >= 0).all(), name
+        interval = table["lower"].notna()
+        assert (table.loc[interval, "lower"] <= table.loc[interval, "upper"]).all()
+        assert interval.all() == (name not in ("ensemble", "knn", "time_to_hit"))
+    assert np.isfinite(fitted["conformal"]["quantile"])  # 15 calibration hits >= 9

@@ -1,0 +1,74 @@
+# Uncertainty: an ensemble of the selected configuration (one job per member), every estimator fitted
+# and applied to the calibration and test hits, and the report.
+from pingpong.uncertainty.tables import ESTIMATORS
+
+UNCERTAINTY = config["uncertainty"]
+MEMBERS = range(UNCERTAINTY["ensemble_size"])
+
+
+rule ensemble_member:
+    input:
+        dataset="processed/dataset.parquet",
+        selection="processed/models/selection.json",
+    output:
+        model="processed/models/ensemble/member{member}.safetensors",
+        sidecar="processed/models/ensemble/member{member}.json",
+    params:
+        member=lambda wc: int(wc.member),
+        settings=TRAIN_SETTINGS,
+        seed=config["seed"],
+        code=code("ensemble_member.py"),
+    wildcard_constraints:
+        member=r"\d+",
+    log:
+        "logs/ensemble_member/member{member}.log",
+    benchmark:
+        "benchmarks/results/ensemble_member/member{member}.tsv"
+    resources:
+        gpu=1 if config["device"] == "cuda" else 0,
+    script:
+        "../scripts/ensemble_member.py"
+
+
+rule fit_uncertainty:
+    input:
+        dataset="processed/dataset.parquet",
+        predictions="processed/predictions.parquet",
+        members=expand("processed/models/ensemble/member{member}.safetensors", member=MEMBERS),
+    output:
+        tables=expand("processed/uncertainty/{estimator}.parquet", estimator=ESTIMATORS),
+        fitted="processed/uncertainty/estimators.json",
+        knn="processed/uncertainty/knn.safetensors",
+        knn_sidecar="processed/uncertainty/knn.json",
+        heads="processed/uncertainty/quantile_heads.safetensors",
+        heads_sidecar="processed/uncertainty/quantile_heads.json",
+    params:
+        settings=UNCERTAINTY,
+        seed=config["seed"],
+        code=code("fit_uncertainty.py"),
+    log:
+        "logs/fit_uncertainty.log",
+    benchmark:
+        "benchmarks/results/fit_uncertainty.tsv"
+    script:
+        "../scripts/fit_uncertainty.py"
+
+
+rule report_uncertainty:
+    input:
+        tables=expand("processed/uncertainty/{estimator}.parquet", estimator=ESTIMATORS),
+    output:
+        md="reports/tables/uncertainty.md",
+        csv="reports/tables/uncertainty.csv",
+        frames_md="reports/tables/uncertainty_by_frame.md",
+        frames_csv="reports/tables/uncertainty_by_frame.csv",
+        scatter="reports/figures/uncertainty_error_vs_uncertainty.png",
+        error_vs_frames="reports/figures/uncertainty_error_vs_frames.png",
+        sparsification="reports/figures/uncertainty_sparsification.png",
+    params:
+        coverage=UNCERTAINTY["coverage"],
+        code=code("report_uncertainty.py"),
+    log:
+        "logs/report_uncertainty.log",
+    script:
+        "../scripts/report_uncertainty.py"
