@@ -70,11 +70,22 @@ def _pre_hit_features(session, frames_before: int) -> tuple[np.ndarray, np.ndarr
     return np.array(X), np.array(y)
 
 
+def _sequence_features(session, frames_before: int) -> tuple[np.ndarray, np.ndarray]:
+    """The frame `frames_before` before each hit and its change over the 1 and 3 frames before it.
+
+    The models see sequences, so a simple regressor gets the motion too: from one frame alone a
+    linear fit cannot tell the swing's phase (which varies with each stroke's timing) from the
+    target's effect on the pose, and mid-swing it does no better than the mean.
+    """
+    X, y = _pre_hit_features(session, frames_before)
+    return np.column_stack([X] + [X - _pre_hit_features(session, frames_before + d)[0] for d in (1, 3)]), y
+
+
 def test_anticipation_signal_grows_towards_the_hit(session):
-    """Ridge regression from the true pre-hit pose to the strike x, on held-out hits."""
+    """Ridge regression from the true pre-hit pose and its motion to the strike x, on held-out hits."""
     errors = {}
     for k in (1, 10, 30):
-        X, y = _pre_hit_features(session, k)
+        X, y = _sequence_features(session, k)
         n_train = int(0.7 * len(y))
         Xa = np.column_stack([X, np.ones(len(X))])
         A = Xa[:n_train]
@@ -82,5 +93,5 @@ def test_anticipation_signal_grows_towards_the_hit(session):
         errors[k] = np.median(np.abs(Xa[n_train:] @ w - y[n_train:]))
         mean_error = np.median(np.abs(y[n_train:] - y[:n_train].mean()))
     assert errors[1] < 0.5 * mean_error  # much better than the mean, 1 frame before the hit
-    assert errors[30] > 3 * errors[1] and errors[30] > 0.6 * mean_error  # clearly worse 30 frames before
-    assert errors[1] < errors[10] < errors[30] * 1.05  # improving in between
+    assert errors[30] > 3 * errors[1]  # clearly worse 30 frames before
+    assert errors[1] < errors[10] < errors[30]  # improving in between
