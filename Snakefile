@@ -26,6 +26,10 @@ include: "workflow/rules/curation.smk"
 include: "workflow/rules/learning.smk"
 include: "workflow/rules/uncertainty.smk"
 include: "workflow/rules/robot.smk"
+include: "workflow/rules/report.smk"
+
+
+report: "workflow/report/workflow.rst"
 
 
 rule all:
@@ -39,4 +43,5 @@ rule all:
         "reports/tables/uncertainty.md",
         "reports/tables/robot.md",
         twin_reports(),
+        report_pages(),
     default_target: True

@@ -2,9 +2,14 @@
 end, checked against the twin's truth where there is one."""
 
 import json
+import shutil
+import subprocess
 
+import cv2
 import numpy as np
 import pandas as pd
+import pytest
+from workflow_util import snakemake
 
 from pingpong.frames import N_INPUT
 
@@ -91,3 +96,32 @@ def test_robot_simulates_every_test_hit_per_controller_within_the_limits(tiny_ru
     limits = pd.read_csv(tiny_run / "reports/tables/robot_limits.csv")
     arm = limits[limits["joint"].str.startswith("iiwa")]
     assert (arm["headroom"] > 1).all()  # the accelerations used are reachable within the torques everywhere
+
+
+def test_html_report_shows_every_stage_table_and_figure(tiny_run):
+    snakemake(tiny_run, "--report", "reports/report.html")
+    report = (tiny_run / "reports/report.html").read_text()
+    for table in ("twin_vs_real", "perception_accuracy", "curation", "cv_results", "strike_error",
+                  "uncertainty", "robot", "robot_limits"):
+        page = next((tiny_run / "reports/pages").glob(f"*/{table}.html"))
+        assert f"{table}.html" in report
+        title = page.read_text().split("<h1>")[1].split("</h1>")[0]
+        assert title and "<table" in page.read_text()
+    for figure in ("strike_error", "uncertainty_sparsification"):
+        assert f"{figure}.png" in report
+
+
+def test_html_report_opens_in_a_headless_browser(tiny_run, tmp_path):
+    browser = shutil.which("chromium")
+    if browser is None:
+        pytest.skip("no headless browser (Debian package chromium; .ci/run installs it)")
+    report = tiny_run / "reports/report.html"
+    if not report.exists():
+        snakemake(tiny_run, "--report", "reports/report.html")
+    shot = tmp_path / "report.png"
+    subprocess.run([browser, "--headless", "--no-sandbox", "--disable-gpu", "--window-size=1280,900",
+                    "--virtual-time-budget=5000", f"--screenshot={shot}", report.as_uri()],
+                   check=True, capture_output=True, timeout=120)
+    image = cv2.imread(str(shot))
+    assert image is not None and image.shape[:2] == (900, 1280)
+    assert image.std() > 10  # the report's page drew something, not a blank window

@@ -61,3 +61,19 @@ def twin_reports():
     if config["source"] != "twin":
         return []
     return ["reports/tables/twin_vs_real.md", "reports/tables/perception_accuracy.md"]
+
+
+# Report tables by stage, each shown as a page in the HTML report (workflow/rules/report.smk).
+TWIN_ONLY = config["source"] == "twin"  # the twin's truth is what those tables measure against
+REPORT_TABLES = {
+    "twin": ["twin_vs_real"] if TWIN_ONLY else [],
+    "perception": ["perception_accuracy"] if TWIN_ONLY else [],
+    "curation": ["curation"],
+    "learning": ["cv_results", "strike_error", "strike_error_by_frame"],
+    "uncertainty": ["uncertainty", "uncertainty_by_frame"],
+    "robot": ["robot", "robot_limits"],
+}
+
+
+def report_pages():
+    return [f"reports/pages/{stage}/{table}.html" for stage, tables in REPORT_TABLES.items() for table in tables]

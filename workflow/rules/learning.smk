@@ -93,7 +93,7 @@ rule report_strike_error:
         csv="reports/tables/strike_error.csv",
         frames_md="reports/tables/strike_error_by_frame.md",
         frames_csv="reports/tables/strike_error_by_frame.csv",
-        figure="reports/figures/strike_error.png",
+        figure=report("reports/figures/strike_error.png", caption="../report/strike_error.rst", category="learning"),
     params:
         code=code("report_strike_error.py"),
     log:

@@ -62,9 +62,21 @@ rule report_uncertainty:
         csv="reports/tables/uncertainty.csv",
         frames_md="reports/tables/uncertainty_by_frame.md",
         frames_csv="reports/tables/uncertainty_by_frame.csv",
-        scatter="reports/figures/uncertainty_error_vs_uncertainty.png",
-        error_vs_frames="reports/figures/uncertainty_error_vs_frames.png",
-        sparsification="reports/figures/uncertainty_sparsification.png",
+        scatter=report(
+            "reports/figures/uncertainty_error_vs_uncertainty.png",
+            caption="../report/uncertainty_scatter.rst",
+            category="uncertainty",
+        ),
+        error_vs_frames=report(
+            "reports/figures/uncertainty_error_vs_frames.png",
+            caption="../report/uncertainty_frames.rst",
+            category="uncertainty",
+        ),
+        sparsification=report(
+            "reports/figures/uncertainty_sparsification.png",
+            caption="../report/uncertainty_sparsification.rst",
+            category="uncertainty",
+        ),
     params:
         coverage=UNCERTAINTY["coverage"],
         code=code("report_uncertainty.py"),
