@@ -72,9 +72,25 @@ def _from_argv(stage: str, argv) -> StageContext:
     return StageContext(stage, pairs(a.input), pairs(a.output), params, Path(a.log) if a.log else None)
 
 
+def pin_threads(threads: int) -> None:
+    """Fixed thread counts, so that two runs on any machines give the same bytes.
+
+    OpenCV's parallel loops sum in a scheduling-dependent order (calibrateCamera differed by 1e-7
+    between runs with 2 threads, and every later stage with it); torch splits its reductions by its
+    thread count, which is the machine's cores unless set. Parallelism comes from Snakemake's jobs.
+    """
+    cv2 = sys.modules.get("cv2")
+    if cv2 is not None:
+        cv2.setNumThreads(1)
+    torch = sys.modules.get("torch")
+    if torch is not None:
+        torch.set_num_threads(max(1, int(threads)))
+
+
 def run_stage(main, smk=None, stage: str | None = None) -> None:
     """Run `main(ctx)` with its logging (and stderr, where tqdm writes) going to the log file."""
     ctx = _from_snakemake(smk) if smk is not None else _from_argv(stage or main.__module__, sys.argv[1:])
+    pin_threads(getattr(smk, "threads", 1))
     with contextlib.ExitStack() as stack:
         if ctx.log is not None:
             ctx.log.parent.mkdir(parents=True, exist_ok=True)
