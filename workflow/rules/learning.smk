@@ -60,6 +60,8 @@ rule train_final:
         code=code("train_final.py"),
     wildcard_constraints:
         variant="final|ball_only",
+    resources:
+        gpu=1 if config["device"] == "cuda" else 0,
     log:
         "logs/train_final/{variant}.log",
     benchmark:
