@@ -42,6 +42,7 @@ rule all:
         "reports/tables/strike_error.md",
         "reports/tables/uncertainty.md",
         "reports/tables/robot.md",
+        rules.robot_scene.output,
         twin_reports(),
         report_pages(),
     default_target: True

@@ -107,7 +107,7 @@ def test_html_report_shows_every_stage_table_and_figure(tiny_run):
         assert f"{table}.html" in report
         title = page.read_text().split("<h1>")[1].split("</h1>")[0]
         assert title and "<table" in page.read_text()
-    for figure in ("strike_error", "uncertainty_sparsification"):
+    for figure in ("strike_error", "uncertainty_sparsification", "robot_scene"):
         assert f"{figure}.png" in report
 
 
@@ -125,3 +125,27 @@ def test_html_report_opens_in_a_headless_browser(tiny_run, tmp_path):
     image = cv2.imread(str(shot))
     assert image is not None and image.shape[:2] == (900, 1280)
     assert image.std() > 10  # the report's page drew something, not a blank window
+
+
+def test_robot_scenes_of_the_first_test_hits_open_as_foxglove_mcap(tiny_run):
+    from mcap.reader import make_reader
+
+    dataset = pd.read_parquet(tiny_run / "processed/dataset.parquet")
+    first = dataset[dataset["split"] == "test"].head(2)  # robot.scene_hits defaults to 2
+    for controller in ("servo", "anticipatory", "uncertainty_aware", "confidence_scaled"):
+        sim = pd.read_parquet(tiny_run / f"processed/sim/{controller}.parquet")
+        for k, hit in enumerate(first.itertuples(index=False)):
+            with open(tiny_run / f"processed/sim/scenes/{controller}_test{k}.mcap", "rb") as f:
+                reader = make_reader(f)
+                summary = reader.get_summary()
+                schemas = {summary.schemas[c.schema_id].name for c in summary.channels.values()}
+                episode = next(dict(m.metadata) for m in reader.iter_metadata() if m.name == "episode")
+            assert schemas == {"foxglove.SceneUpdate", "foxglove.FrameTransforms"}
+            assert summary.statistics.message_count > 0
+            assert (episode["session"], int(episode["rally"]), int(episode["hit"])) == (
+                hit.session, hit.rally, hit.hit)
+            row = sim[(sim["session"] == hit.session) & (sim["rally"] == hit.rally) & (sim["hit"] == hit.hit)]
+            # the scene replays the episode of the simulation table (the rule checks the end distance too)
+            assert episode["hit_ball"] == str(bool(row["hit_ball"].iloc[0]))
+    image = cv2.imread(str(tiny_run / "reports/figures/robot_scene.png"))
+    assert image is not None and image.std() > 20

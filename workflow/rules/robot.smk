@@ -1,5 +1,6 @@
 # The simulated robot: every controller (one job each, tuned on the calibration hits where it has a sweep)
-# against the test hits' measured flights, and the report (Tables 2-4 and the joint limits).
+# against the test hits' measured flights, the report (Tables 2-4 and the joint limits), and a few episodes
+# as Foxglove scenes with the simulation figure.
 from pingpong.uncertainty.tables import ESTIMATORS
 
 ROBOT = config["robot"]
@@ -64,3 +65,31 @@ rule report_robot:
         "logs/report_robot.log",
     script:
         "../scripts/report_robot.py"
+
+
+rule robot_scene:
+    input:
+        dataset="processed/dataset.parquet",
+        predictions="processed/predictions.parquet",
+        balls=expand("interim/filtered/{session}_ball.parquet", session=sessions()),
+        uncertainty=[f"processed/uncertainty/{ROBOT['estimator']}.parquet"] if ROBOT["estimator"] else [],
+        sims=expand("processed/sim/{controller}.parquet", controller=ROBOT_CONTROLLERS),
+        choices=expand("processed/sim/{controller}.json", controller=ROBOT_CONTROLLERS),
+        limits="config/robot/limits.yaml",
+        urdf="config/robot/iiwa14_ridgeback.urdf",
+    output:
+        # {controller}_test{k}: the k-th test hit of the dataset (its session, rally and hit are in the
+        # file's metadata record 'episode')
+        mcaps=expand("processed/sim/scenes/{controller}_test{k}.mcap", controller=ROBOT_CONTROLLERS,
+                     k=range(ROBOT["scene_hits"])),
+        figure=report("reports/figures/robot_scene.png", caption="../report/robot_scene.rst", category="robot"),
+    params:
+        controllers=ROBOT_CONTROLLERS,
+        sessions=sessions(),
+        n_hits=ROBOT["scene_hits"],
+        settings=ROBOT_SETTINGS,
+        code=code("robot_scene.py"),
+    log:
+        "logs/robot_scene.log",
+    script:
+        "../scripts/robot_scene.py"

@@ -10,9 +10,7 @@ from pingpong.common.script import run_stage
 from pingpong.curation.dataset import DATASET
 from pingpong.learning.cv import PREDICTIONS
 from pingpong.perception.triangulation import BALL3D
-from pingpong.robot.control import ControlParams
-from pingpong.robot.episode import EpisodeParams
-from pingpong.robot.evaluate import CHOICE, SIM, SimSettings, hit_predictions, simulate_hits
+from pingpong.robot.evaluate import CHOICE, SIM, hit_predictions, sim_settings, simulate_hits
 from pingpong.robot.flights import hit_flights
 from pingpong.robot.model import load_robot
 from pingpong.robot.sweep import choose_controller
@@ -29,12 +27,7 @@ def main(ctx):
     uncertainty = read_table(i.uncertainty[0], UNCERTAINTY) if i.get("uncertainty") else None
     balls = {s: read_table(f, BALL3D, columns=["time_ns", "x", "y", "z"])
              for s, f in zip(p["sessions"], i.balls, strict=True)}
-    settings = SimSettings(
-        EpisodeParams(anticipation_start_frame=cfg["anticipation_start_frame"],
-                      servo_start_frame=cfg["servo_start_frame"],
-                      servo_period_frames=cfg["servo_period_frames"], latency_frames=cfg["latency_frames"],
-                      control=ControlParams(dt=cfg["control_dt_s"])),
-        anticipation_z=float(dataset.loc[dataset["split"] == "train", "strike_z"].median()))
+    settings = sim_settings(cfg, dataset.loc[dataset["split"] == "train", "strike_z"].median())
     robot = load_robot()
     parts = {}
     for split in ("calibration", "test"):

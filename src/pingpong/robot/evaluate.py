@@ -19,6 +19,7 @@ import pandas as pd
 
 from pingpong.common.artifacts import Schema
 from pingpong.frames import REGION_EDGE_X
+from pingpong.robot.control import ControlParams
 from pingpong.robot.episode import (
     FRAME_DT,
     EpisodeParams,
@@ -58,6 +59,17 @@ class Prediction:
 class SimSettings:
     episode: EpisodeParams = field(default_factory=EpisodeParams)
     anticipation_z: float = 0.15  # m, height of the anticipation goals
+
+
+def sim_settings(settings: dict, anticipation_z: float) -> SimSettings:
+    """SimSettings from the config's robot settings (simulate_robot and robot_scene share it)."""
+    return SimSettings(
+        EpisodeParams(anticipation_start_frame=settings["anticipation_start_frame"],
+                      servo_start_frame=settings["servo_start_frame"],
+                      servo_period_frames=settings["servo_period_frames"],
+                      latency_frames=settings["latency_frames"],
+                      control=ControlParams(dt=settings["control_dt_s"])),
+        anticipation_z=float(anticipation_z))
 
 
 def confidence_ramp(uncertainty: np.ndarray, u_full: float, u_zero: float) -> np.ndarray:
