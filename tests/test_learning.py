@@ -21,6 +21,7 @@ from pingpong.learning.models import (
     prediction_frames,
     prediction_mask,
     save_net,
+    with_velocity,
 )
 from pingpong.learning.streaming import StreamingPredictor
 from pingpong.learning.train import EarlyStopping, evaluate_loss, predict, strike_points, train
@@ -111,16 +112,28 @@ def test_prediction_does_not_see_the_hit_frame():
     np.testing.assert_array_equal(predict(net, X), before)
 
 
-def test_padding_is_never_read():
+@pytest.mark.parametrize("velocity", [False, True])
+def test_padding_is_never_read(velocity):
     rng = np.random.default_rng(2)
     X, _ = _random_set(rng, 1, n_frames=35)
     padded = np.concatenate([np.full((1, 10, N_INPUT), np.nan, np.float32), X], axis=1)
     for cell in ("rnn", "lstm", "gru"):
-        net = AnticipationNet(cell, **TINY)
+        net = AnticipationNet(cell, **TINY, velocity=velocity)
         mixed = np.concatenate([padded, rng.normal(size=padded.shape).astype(np.float32)])
         out = net(torch.tensor(mixed), torch.tensor([35, 45])).detach()
         torch.testing.assert_close(out[0, 10:], net(torch.tensor(X))[0].detach(), atol=1e-6, rtol=0)
         assert torch.isnan(out[0, :10]).all()
+
+
+def test_velocity_is_the_change_per_second_from_each_hits_first_real_frame():
+    x = torch.arange(12, dtype=torch.float32).reshape(2, 3, 2) ** 2  # 2 rows, 3 frames, 2 channels
+    valid = torch.tensor([[True, True, True], [False, True, True]])  # row 1: one padded frame
+    out = with_velocity(x, valid)
+    assert out.shape == (2, 3, 4)
+    torch.testing.assert_close(out[..., :2], x)
+    torch.testing.assert_close(out[0, 1:, 2:], (x[0, 1:] - x[0, :-1]) * 100.0)  # 100 Hz frames
+    assert (out[0, 0, 2:] == 0).all() and (out[1, :2, 2:] == 0).all()  # first real frame and padding
+    torch.testing.assert_close(out[1, 2, 2:], (x[1, 2] - x[1, 1]) * 100.0)
 
 
 # --- early stopping -------------------------------------------------------------------------------
@@ -231,12 +244,13 @@ def test_learns_more_as_the_hit_approaches():
 
 # --- streaming --------------------------------------------------------------------------------
 
+@pytest.mark.parametrize("velocity", [False, True])
 @pytest.mark.parametrize("cell", ["rnn", "lstm", "gru"])
-def test_streaming_equals_batch(cell):
+def test_streaming_equals_batch(cell, velocity):
     rng = np.random.default_rng(9)
     X, Y = _random_set(rng, 2)
-    net = AnticipationNet(cell, **TINY)
-    net.normaliser.fit(X)
+    net = AnticipationNet(cell, **TINY, velocity=velocity)
+    net.normaliser.fit(net.features(torch.tensor(X)))
     lengths = torch.tensor([40, 27])  # the second hit starts 13 frames into its (padded) row
     batch = net(torch.tensor(X), lengths).detach().numpy()
     stream = StreamingPredictor(net)

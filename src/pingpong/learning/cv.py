@@ -23,7 +23,9 @@ BALL_ONLY = slice(N_INPUT - 3, N_INPUT)  # the last 3 of the 39 values are the b
 
 def make_net(config: dict, seed: int, n_input: int = N_INPUT) -> AnticipationNet:
     cfg = {k: config[k] for k in ARCHITECTURE_KEYS}
-    return AnticipationNet(cfg.pop("cell"), n_input=n_input, seed=seed, **cfg)
+    # velocity inputs go beyond the paper; configurations without the key are the paper's nets
+    return AnticipationNet(cfg.pop("cell"), n_input=n_input, seed=seed,
+                           velocity=bool(config.get("velocity", False)), **cfg)
 
 
 def fit_fold(X: np.ndarray, Y: np.ndarray, folds: np.ndarray, fold: int, config: dict, settings: dict,

@@ -9,6 +9,10 @@ Frame indexing (one convention for training, prediction and streaming):
 - `prediction_frames(out)` cuts those 30 columns: column k is t = -(30 - k), so column 0 is
   30 frames (0.30 s) before the hit and column 29 is 1 frame (10 ms) before it
   (`FRAMES_BEFORE_HIT[k]` frames).
+- Velocity inputs (`velocity=True`, beyond the paper): each frame's 39 values are followed by their
+  change since the previous frame, per second (0 at a hit's first real frame), so the net sees
+  motion without having to learn differencing from a few hundred hits. The streaming step carries
+  the previous frame in its state, so batch and stream still agree.
 - Variable lengths: padding sits at the front. `lengths` (N,) counts the real frames at the end of
   each sequence; padded frames are never read (their values may be anything, NaN included) and
   the outputs there are NaN. A streaming predictor reset before a hit's first real frame gives
@@ -20,12 +24,13 @@ import torch
 from torch import nn
 
 from pingpong.common.artifacts import Provenance, Schema, load_model, save_model
-from pingpong.frames import N_INPUT, N_PRED_FRAMES
+from pingpong.frames import FRAME_NS, N_INPUT, N_PRED_FRAMES
 
 FRAMES_BEFORE_HIT = np.arange(N_PRED_FRAMES, 0, -1)  # column k of prediction_frames() -> frames before hit
 MODEL_SCHEMA = Schema("anticipation_net", 1)
 CELLS = {"rnn": nn.RNN, "lstm": nn.LSTM, "gru": nn.GRU}
 _MIN_STD = 1e-6  # a constant input channel is centred but not scaled
+FRAME_RATE_HZ = 1e9 / FRAME_NS
 
 
 def valid_mask(lengths, n_frames: int) -> torch.Tensor:
@@ -50,6 +55,15 @@ def prediction_frames(out: torch.Tensor) -> torch.Tensor:
     if missing > 0:
         out = torch.cat([out.new_full((out.shape[0], missing, out.shape[2]), float("nan")), out], dim=1)
     return out[:, -1 - N_PRED_FRAMES : -1]
+
+
+def with_velocity(x: torch.Tensor, valid: torch.Tensor) -> torch.Tensor:
+    """(N, T, C) frames -> (N, T, 2C): each frame, then its change since the previous frame per second;
+    0 at each row's first real frame and on padding (valid (N or 1, T): the real frames)."""
+    valid = valid.to(x.device).expand(x.shape[0], -1)
+    follows = valid & torch.cat([torch.zeros_like(valid[:, :1]), valid[:, :-1]], dim=1)
+    prev = torch.cat([x[:, :1], x[:, :-1]], dim=1)
+    return torch.cat([x, torch.where(follows[..., None], (x - prev) * FRAME_RATE_HZ, 0.0)], dim=-1)
 
 
 class Normaliser(nn.Module):
@@ -82,21 +96,26 @@ class AnticipationNet(nn.Module):
     """Recurrent stack (batch_first) + an MLP applied to every hidden state: (N, T, 39) -> (N, T, 3).
 
     mlp_layers counts the hidden layers of width mlp_hidden (ReLU, dropout) before the linear
-    output layer; dropout is also applied between recurrent layers. Weights are initialised from
+    output layer; dropout is also applied between recurrent layers. velocity: append each input's
+    change per second (`with_velocity`, see the module docstring). Weights are initialised from
     `seed` without touching torch's global random state.
     """
 
     def __init__(self, cell: str, *, n_input: int = N_INPUT, rnn_hidden: int, rnn_layers: int,
-                 mlp_hidden: int, mlp_layers: int, dropout: float = 0.0, seed: int = 0):
+                 mlp_hidden: int, mlp_layers: int, dropout: float = 0.0, velocity: bool = False,
+                 seed: int = 0):
         super().__init__()
         if cell not in CELLS:
             raise ValueError(f"AnticipationNet: cell '{cell}' is not one of {sorted(CELLS)}")
         self.architecture = dict(cell=cell, n_input=n_input, rnn_hidden=rnn_hidden, rnn_layers=rnn_layers,
-                                 mlp_hidden=mlp_hidden, mlp_layers=mlp_layers, dropout=dropout)
+                                 mlp_hidden=mlp_hidden, mlp_layers=mlp_layers, dropout=dropout,
+                                 velocity=bool(velocity))
+        self.velocity = bool(velocity)
+        n_features = 2 * n_input if velocity else n_input
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(seed)
-            self.normaliser = Normaliser(n_input)
-            self.rnn = CELLS[cell](n_input, rnn_hidden, rnn_layers, batch_first=True,
+            self.normaliser = Normaliser(n_features)
+            self.rnn = CELLS[cell](n_features, rnn_hidden, rnn_layers, batch_first=True,
                                    dropout=dropout if rnn_layers > 1 else 0.0)
             layers, width = [], rnn_hidden
             for _ in range(mlp_layers):
@@ -104,14 +123,18 @@ class AnticipationNet(nn.Module):
                 width = mlp_hidden
             self.head = nn.Sequential(*layers, nn.Linear(width, 3))
 
+    def features(self, x: torch.Tensor, lengths=None) -> torch.Tensor:
+        """The recurrent stack's input before normalisation: x, with its velocities if the net uses them."""
+        return with_velocity(x, valid_mask(lengths, x.shape[1])) if self.velocity else x
+
     def forward(self, x: torch.Tensor, lengths=None) -> torch.Tensor:
         """(N, T, 3) path parameters after each frame; NaN on padded frames (see module doc)."""
         n_frames = x.shape[1]
         if lengths is None or bool((torch.as_tensor(lengths) == n_frames).all()):
-            return self.head(self.rnn(self.normaliser(x))[0])
+            return self.head(self.rnn(self.normaliser(self.features(x)))[0])
         lengths = torch.as_tensor(lengths, device=x.device)
         valid = valid_mask(lengths, n_frames)
-        z = self.normaliser(torch.where(valid[..., None], x, 0.0))
+        z = self.normaliser(self.features(torch.where(valid[..., None], x, 0.0), lengths))
         # Rotate each row's real frames to the front, run the plain (fused) RNN, rotate back. The
         # recurrence is causal, so the padding now trailing each row never reaches the real frames'
         # outputs, and every row starts from the zero state at its first real frame. (Packed
@@ -124,10 +147,17 @@ class AnticipationNet(nn.Module):
         out = self.head(h_front.gather(1, to_back))
         return torch.where(valid[..., None], out, float("nan"))
 
-    def step(self, frame: torch.Tensor, hidden=None):
-        """One frame (N, 39) -> ((N, 3) path parameters, new recurrent state); hidden=None starts a hit."""
-        h, hidden = self.rnn(self.normaliser(frame)[:, None, :], hidden)
-        return self.head(h[:, 0]), hidden
+    def step(self, frame: torch.Tensor, state=None):
+        """One frame (N, 39) -> ((N, 3) path parameters, new state); state=None starts a hit.
+
+        The state is the recurrent state and the frame itself (for the next frame's velocity)."""
+        hidden, prev = (None, None) if state is None else state
+        z = frame
+        if self.velocity:
+            change = torch.zeros_like(frame) if prev is None else (frame - prev) * FRAME_RATE_HZ
+            z = torch.cat([frame, change], dim=-1)
+        h, hidden = self.rnn(self.normaliser(z)[:, None, :], hidden)
+        return self.head(h[:, 0]), (hidden, frame)
 
 
 def save_net(net: AnticipationNet, hparams: dict, stem, prov: Provenance) -> None:

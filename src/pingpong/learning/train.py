@@ -100,7 +100,7 @@ def train(net: AnticipationNet, X_train, Y_train, X_val, Y_val, lr: float, *, ba
     _check_inputs(X_train, Y_train, lengths_train, "training part", n_input)
     _check_inputs(X_val, Y_val, lengths_val, "validation part", n_input)
     dev = resolve_device(device)
-    net.normaliser.fit(X_train, lengths_train)
+    net.normaliser.fit(net.features(X_train, lengths_train), lengths_train)
     net.to(dev)
     X_dev, Y_dev = X_train.to(dev), Y_train.to(dev)
     L_dev = None if lengths_train is None else torch.as_tensor(lengths_train).to(dev)
