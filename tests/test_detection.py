@@ -188,6 +188,26 @@ def test_distractor_colours_are_rejected_with_noise_and_jpeg(hsv):
     assert found is not None and np.hypot(found[0] - 350.2, found[1] - 90.7) < 0.1
 
 
+def _jpeg(image: np.ndarray) -> np.ndarray:
+    return cv2.imdecode(np.frombuffer(render.encode_jpeg(to_uint8(image), 90), np.uint8), cv2.IMREAD_COLOR)
+
+
+@pytest.mark.parametrize("blur", [0.5, 0.8, 1.0])
+def test_a_red_yellow_seam_is_not_a_ball_but_a_ball_on_either_colour_is(blur):
+    # red rubber held in front of the yellow bucket: their anti-aliased edge is true orange, a blob that
+    # passes every colour test (without the seam rule the detector returns it at these blurs)
+    image = canvas()
+    draw_disc(image, 200.3, 150.2, 40.0, render.hsv_to_bgr(*render.BUCKET_HSV))
+    draw_disc(image, 255.7, 150.6, 30.0, render.hsv_to_bgr(*DISTRACTORS["red rubber"]))
+    image = cv2.GaussianBlur(image, (0, 0), blur)
+    assert detect_ball(_jpeg(image), BallDetector()) is None
+    for u, v in ((262.4, 140.3), (185.2, 160.7)):  # a ball in front of the red, then of the yellow
+        with_ball = image.copy()
+        draw_disc(with_ball, u, v, 3.0, render.BALL_BGR)
+        found = detect_ball(_jpeg(with_ball), BallDetector())
+        assert found is not None and np.hypot(found[0] - u, found[1] - v) < 0.5
+
+
 def test_the_window_searches_only_around_the_previous_detection():
     image = canvas()
     draw_disc(image, 100.4, 100.2, 2.5, render.BALL_BGR)
