@@ -17,7 +17,15 @@ from pingpong.common.rigid import (
     quat_xyzw_to_matrix,
 )
 from pingpong.frames import TABLE_HALF_LENGTH, TABLE_HALF_WIDTH
-from pingpong.perception.paddle import fit_optitrack_to_table, read_motive_csv, resample_poses, to_table_frame
+from pingpong.io.mcap_io import OptitrackWriter
+from pingpong.perception.paddle import (
+    fit_optitrack_to_table,
+    paddle_table,
+    read_motive_csv,
+    read_optitrack_poses,
+    resample_poses,
+    to_table_frame,
+)
 
 OPTITRACK_NS = round(1e9 / 240)
 
@@ -251,6 +259,34 @@ def test_read_motive_csv_two_bodies_with_dropouts(tmp_path):
     _, _, valid = resample_poses(black["time_ns"], black[["x", "y", "z"]], black[["qx", "qy", "qz", "qw"]],
                                  target)
     np.testing.assert_array_equal(valid, (target / 1e9 <= 39 / 240) | (target / 1e9 >= 60 / 240))
+
+
+def test_a_motive_csv_export_gives_the_paddle_table_of_the_stream(tmp_path):
+    # the same take as a Motive CSV (time from the take's start, mm, NaN rows where lost) and as the
+    # OptiTrack MCAP stream (camera-clock ns, lost samples absent): the paddle stage's table is the same
+    take_start_ns = 1_767_225_600_000_000_000 + 123_456_789
+    time_s = np.round(np.arange(240) / 240, 6)
+    pos, quat = swing(time_s)
+    lost = np.zeros(240, bool)
+    lost[100:130] = True
+    write_motive_csv(tmp_path / "optitrack.csv", time_s, {"paddle_near": (pos, quat)}, {"paddle_near": lost})
+    with OptitrackWriter(tmp_path / "optitrack.mcap") as writer:
+        for k in np.flatnonzero(~lost):
+            writer.add("paddle_near", take_start_ns + round(time_s[k] * 1e9), pos[k], quat[k])
+    frames = take_start_ns + np.arange(0, 100) * 10_000_000  # the camera clock, 100 Hz
+    T = make_transform(Rotation.from_euler("z", 0.3).as_matrix(), [0.1, -0.2, 0.05])
+    tables = [paddle_table(read_optitrack_poses(tmp_path / f"optitrack.{ext}", take_start_ns=take_start_ns),
+                           {"near": "paddle_near"}, T, frames) for ext in ("csv", "mcap")]
+    np.testing.assert_array_equal(tables[0]["valid"], tables[1]["valid"])
+    assert not tables[0]["valid"].all() and tables[0]["valid"].any()  # the dropout is a gap in both
+    valid = tables[0]["valid"].to_numpy()
+    numbers = tables[0].columns.drop(["time_ns", "player", "valid"])
+    # the CSV holds quaternions to 6 decimals: rotation entries agree to a few 1e-6, positions to 1e-9 m
+    np.testing.assert_allclose(tables[0][numbers][valid], tables[1][numbers][valid], atol=5e-6)
+    with pytest.raises(ValueError, match="lab.motive_take_start_ns"):
+        read_optitrack_poses(tmp_path / "optitrack.csv")
+    with pytest.raises(ValueError, match=r"\.mcap.*\.csv"):
+        read_optitrack_poses(tmp_path / "optitrack.txt")
 
 
 def _fixture(tmp_path):

@@ -52,8 +52,19 @@ def raw_outputs():
         expand("raw/calibration/{cam}/table.png", cam=cameras())
         + [f"raw/sessions/{s}/{c}.mcap" for s in sessions() for c in session_cameras(s)]
         + [f"raw/sessions/{s}/openpose/{c}" for s in sessions() for c in session_cameras(s)]
-        + expand("raw/sessions/{session}/optitrack.mcap", session=sessions())
+        + [optitrack_path(s) for s in sessions()]
     )
+
+
+def optitrack_path(session):
+    """The session's OptiTrack poses: the MCAP stream, or a Motive CSV export (lab.optitrack_format)."""
+    csv = config["source"] == "lab" and config["lab"]["optitrack_format"] == "motive_csv"
+    return f"raw/sessions/{session}/optitrack.{'csv' if csv else 'mcap'}"
+
+
+def motive_take_start_ns(session):
+    """Camera-clock time of a Motive take's first frame (None for the MCAP stream, which has it)."""
+    return config["lab"]["motive_take_start_ns"].get(session) if optitrack_path(session).endswith(".csv") else None
 
 
 def twin_reports():

@@ -5,7 +5,7 @@ PERCEPTION = config["perception"]
 rule calibration:
     input:
         captures=expand("raw/calibration/{cam}/table.png", cam=cameras()),
-        optitrack=f"raw/sessions/{sessions()[0]}/optitrack.mcap",
+        optitrack=optitrack_path(sessions()[0]),
     output:
         cameras="interim/calibration/cameras.json",
     params:
@@ -14,6 +14,7 @@ rule calibration:
         import_path=PERCEPTION["calibration_import"],
         import_units=PERCEPTION["calibration_import_units"],
         strict=PERCEPTION["strict_mcap"],
+        take_start_ns=motive_take_start_ns(sessions()[0]),
         code=code("calibration.py"),
     log:
         "logs/calibration.log",
@@ -24,7 +25,7 @@ rule calibration:
 rule paddle:
     input:
         cameras="interim/calibration/cameras.json",
-        optitrack="raw/sessions/{session}/optitrack.mcap",
+        optitrack=lambda wc: optitrack_path(wc.session),
         clock=lambda wc: f"raw/sessions/{wc.session}/{session_cameras(wc.session)[0]}.mcap",
     output:
         paddle="interim/paddle/{session}.parquet",
@@ -32,6 +33,7 @@ rule paddle:
         bodies=PERCEPTION["paddle_bodies"],
         max_gap_s=PERCEPTION["paddle_max_gap_s"],
         strict=PERCEPTION["strict_mcap"],
+        take_start_ns=lambda wc: motive_take_start_ns(wc.session),
         code=code("paddle.py"),
     log:
         "logs/paddle/{session}.log",

@@ -2,10 +2,9 @@
 
 from pingpong.common.artifacts import write_json
 from pingpong.common.script import run_stage
-from pingpong.io.mcap_io import read_optitrack
 from pingpong.perception.calibration import CAMERAS, calibrate_camera, camera_folder_paths
 from pingpong.perception.calibration_import import read_anipose_toml, read_opencv_calibration
-from pingpong.perception.paddle import optitrack_to_table
+from pingpong.perception.paddle import optitrack_to_table, read_optitrack_poses
 
 
 def main(ctx):
@@ -17,7 +16,7 @@ def main(ctx):
         pairs = [calibrate_camera(cam, *camera_folder_paths(folder))
                  for cam, folder in zip(p["cameras"], p["folders"], strict=True)]
         cameras, reports = [c for c, _ in pairs], [r for _, r in pairs]
-    T, rms = optitrack_to_table(read_optitrack(ctx.input.optitrack, strict=p["strict"]))
+    T, rms = optitrack_to_table(read_optitrack_poses(ctx.input.optitrack, p["strict"], p["take_start_ns"]))
     write_json({"cameras": [c.to_dict() for c in cameras], "reports": reports,
                 "T_table_from_optitrack": T.tolist(), "optitrack_fit_rms_m": rms},
                ctx.output.cameras, CAMERAS, ctx.provenance())

@@ -4,17 +4,18 @@ import numpy as np
 
 from pingpong.common.artifacts import write_table
 from pingpong.common.script import run_stage
-from pingpong.io.mcap_io import read_camera_times, read_optitrack
+from pingpong.io.mcap_io import read_camera_times
 from pingpong.perception.calibration import load_cameras
-from pingpong.perception.paddle import PADDLE, paddle_table
+from pingpong.perception.paddle import PADDLE, paddle_table, read_optitrack_poses
 
 
 def main(ctx):
     p = ctx.params
     _, calibration = load_cameras(ctx.input.cameras)
     frame_times = read_camera_times(ctx.input.clock, strict=p["strict"])
-    table = paddle_table(read_optitrack(ctx.input.optitrack, strict=p["strict"]), p["bodies"],
-                         np.array(calibration["T_table_from_optitrack"]), frame_times, p["max_gap_s"])
+    poses = read_optitrack_poses(ctx.input.optitrack, p["strict"], p["take_start_ns"])
+    table = paddle_table(poses, p["bodies"], np.array(calibration["T_table_from_optitrack"]), frame_times,
+                         p["max_gap_s"])
     write_table(table, ctx.output.paddle, PADDLE, ctx.provenance())
 
 

@@ -19,6 +19,7 @@ from pingpong.common.artifacts import Schema
 from pingpong.common.patterns import TABLE_MARKERS
 from pingpong.common.rigid import apply_transform, fit_rigid_transform, rotate_matrices
 from pingpong.frames import ROT_COLUMNS
+from pingpong.io.mcap_io import read_optitrack
 
 log = logging.getLogger(__name__)
 
@@ -172,6 +173,29 @@ def read_motive_csv(path: str | Path) -> dict[str, pd.DataFrame]:
             frame[key] = values[:, body[key]] * (scale if key in ("x", "y", "z") else 1.0)
         frame.attrs = {"source": str(path), **meta}
         bodies[name] = frame
+    return bodies
+
+
+def read_optitrack_poses(path: str | Path, strict: bool = False,
+                         take_start_ns: int | None = None) -> dict[str, pd.DataFrame]:
+    """Rigid-body poses by body name (time_ns on the camera clock, x, y, z, qx, qy, qz, qw) from the
+    OptiTrack MCAP stream (`.mcap`) or a Motive CSV export (`.csv`).
+
+    A Motive export counts time from the take's start, so take_start_ns, the camera-clock time of the
+    take's first frame (config `lab.motive_take_start_ns`, from the lab's clock sync), is added to it.
+    """
+    path = Path(path)
+    if path.suffix == ".mcap":
+        return read_optitrack(path, strict=strict)
+    if path.suffix != ".csv":
+        raise ValueError(f"{path}: OptiTrack poses must be an MCAP stream (.mcap) or a Motive CSV export "
+                         "(.csv)")
+    if take_start_ns is None:
+        raise ValueError(f"{path}: a Motive CSV counts time from the take's start; give the camera-clock "
+                         "time of its first frame in config lab.motive_take_start_ns (session: ns)")
+    bodies = read_motive_csv(path)
+    for frame in bodies.values():
+        frame["time_ns"] += int(take_start_ns)
     return bodies
 
 

@@ -1,0 +1,50 @@
+"""Lab data whose OptiTrack poses come as a Motive CSV export instead of the MCAP stream: the
+calibration and paddle stages read it (time from the take's start plus the configured offset) and
+give the paddle table of the stream."""
+
+import shutil
+
+import numpy as np
+import pandas as pd
+import pytest
+from test_paddle_resample import write_motive_csv
+from workflow_util import copy_checkout, snakemake, write_config
+
+from pingpong.io.mcap_io import read_optitrack
+
+
+def mcap_to_motive_csv(mcap, csv) -> int:
+    """The stream's bodies on one frame grid (the union of their times to the microsecond, the export's
+    resolution), as a Motive export; returns the camera-clock time (ns) of the take's first frame."""
+    bodies = read_optitrack(mcap)
+    for body in bodies.values():
+        body["time_ns"] = body["time_ns"].round(-3)
+    times = np.unique(np.concatenate([b["time_ns"].to_numpy() for b in bodies.values()]))
+    columns, lost = {}, {}
+    for name, body in bodies.items():
+        rows = body.set_index("time_ns").reindex(times)
+        lost[name] = rows["x"].isna().to_numpy()
+        columns[name] = (rows[["x", "y", "z"]].to_numpy(), rows[["qx", "qy", "qz", "qw"]].to_numpy())
+    write_motive_csv(csv, (times - times[0]) / 1e9, columns, lost)
+    return int(times[0])
+
+
+@pytest.mark.slow
+def test_paddles_from_a_motive_csv_equal_those_from_the_stream(tiny_run, tmp_path):
+    root = copy_checkout(tmp_path)
+    shutil.copytree(tiny_run / "raw/calibration", root / "raw/calibration")
+    session = root / "raw/sessions/s00"
+    shutil.copytree(tiny_run / "raw/sessions/s00", session, ignore=shutil.ignore_patterns("optitrack.mcap"))
+    start = mcap_to_motive_csv(tiny_run / "raw/sessions/s00/optitrack.mcap", session / "optitrack.csv")
+    cameras = sorted(p.stem for p in session.glob("cam*.mcap"))
+    write_config(root, {"source": "lab", "lab": {"sessions": ["s00"], "cameras": cameras,
+                                                 "optitrack_format": "motive_csv",
+                                                 "motive_take_start_ns": {"s00": start}}})
+    snakemake(root, "interim/paddle/s00.parquet")
+    ours, stream = (pd.read_parquet(r / "interim/paddle/s00.parquet") for r in (root, tiny_run))
+    pd.testing.assert_series_equal(ours["time_ns"], stream["time_ns"])
+    pd.testing.assert_series_equal(ours["valid"], stream["valid"])  # the same gaps
+    both = (ours["valid"] & stream["valid"]).to_numpy()
+    numbers = ours.columns.drop(["time_ns", "player", "valid"])
+    # the CSV holds quaternions to 6 decimals and times to the microsecond: 1e-5 of a rotation entry
+    np.testing.assert_allclose(ours[numbers][both], stream[numbers][both], atol=2e-5)
