@@ -149,3 +149,16 @@ def test_robot_scenes_of_the_first_test_hits_open_as_foxglove_mcap(tiny_run):
             assert episode["hit_ball"] == str(bool(row["hit_ball"].iloc[0]))
     image = cv2.imread(str(tiny_run / "reports/figures/robot_scene.png"))
     assert image is not None and image.std() > 20
+
+
+def test_twin_run_reports_curation_against_the_truth(tiny_run):
+    table = pd.read_csv(tiny_run / "reports/tables/curation_accuracy.csv")
+    assert list(table.columns) == ["quantity", "value", "unit", "threshold", "must_be", "ok"]
+    assert set(table["quantity"]) == {
+        "true hits found within a frame", "spurious detected hits", "true bounces found within a frame",
+        "spurious detected bounces", "candidates that are true hits",
+        "decisions agreeing with the twin's outcome",
+        "kept candidates that are true ok returns", "true faults rejected as that fault",
+        "unfiltered 3D ball error in flight (median)", "filtered 3D ball error in flight (median)",
+        "label strike point vs measured crossing (median)", "measured strike point vs truth (median)"}
+    assert table["value"].notna().all()

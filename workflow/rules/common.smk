@@ -71,7 +71,8 @@ def twin_reports():
     """Reports that compare against the twin's truth: only twin runs have one."""
     if config["source"] != "twin":
         return []
-    return ["reports/tables/twin_vs_real.md", "reports/tables/perception_accuracy.md"]
+    return ["reports/tables/twin_vs_real.md", "reports/tables/perception_accuracy.md",
+            "reports/tables/curation_accuracy.md"]
 
 
 # Report tables by stage, each shown as a page in the HTML report (workflow/rules/report.smk).
@@ -79,7 +80,7 @@ TWIN_ONLY = config["source"] == "twin"  # the twin's truth is what those tables 
 REPORT_TABLES = {
     "twin": ["twin_vs_real"] if TWIN_ONLY else [],
     "perception": ["perception_accuracy"] if TWIN_ONLY else [],
-    "curation": ["curation"],
+    "curation": ["curation", *(["curation_accuracy"] if TWIN_ONLY else [])],
     "learning": ["cv_results", "strike_error", "strike_error_by_frame"],
     "uncertainty": ["uncertainty", "uncertainty_by_frame"],
     "robot": ["robot", "robot_limits"],

@@ -62,3 +62,24 @@ rule dataset:
         "logs/dataset.log",
     script:
         "../scripts/dataset.py"
+
+
+rule report_curation:
+    input:
+        detected=expand("interim/events/{session}.parquet", session=sessions()),
+        events=expand("raw/twin_truth/{session}/events.parquet", session=sessions()),
+        shots=expand("raw/twin_truth/{session}/shots.parquet", session=sessions()),
+        ball=expand("raw/twin_truth/{session}/ball.parquet", session=sessions()),
+        ball3d=expand("interim/ball3d/{session}.parquet", session=sessions()),
+        filtered=expand("interim/filtered/{session}_ball.parquet", session=sessions()),
+        segments="processed/segments.parquet",
+    output:
+        md="reports/tables/curation_accuracy.md",
+        csv="reports/tables/curation_accuracy.csv",
+    params:
+        sessions=sessions(),
+        code=code("report_curation.py"),
+    log:
+        "logs/report_curation.log",
+    script:
+        "../scripts/report_curation.py"
