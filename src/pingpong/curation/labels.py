@@ -15,6 +15,7 @@ from pingpong.frames import MODEL_JOINTS, N_INPUT, STRIKE_Y
 
 MIRROR = np.diag([-1.0, -1.0, 1.0])  # rotation by pi about z
 N_POINTS = len(MODEL_JOINTS) + 1  # the joints and the paddle position lead the 39-value frame
+PADDLE_POSITION = slice(3 * (N_POINTS - 1), 3 * N_POINTS)
 PADDLE_ROTATION = slice(3 * N_POINTS, 3 * N_POINTS + 9)
 BALL = slice(N_INPUT - 3, N_INPUT)
 

@@ -63,6 +63,21 @@ class _AtomicMcapWriter:
         return self._stack.__exit__(exc_type, exc, tb)
 
 
+class SceneWriter(_AtomicMcapWriter):
+    """Write any protobuf messages (foxglove.SceneUpdate, FrameTransforms, ...) and metadata records,
+    zstd-compressed: `with SceneWriter(path) as w: w.add(topic, t_ns, message)`."""
+
+    def __init__(self, path: str | os.PathLike):
+        super().__init__(path, CompressionType.ZSTD)
+
+    def add(self, topic: str, log_time_ns: int, message) -> None:
+        log_time_ns = int(log_time_ns)
+        self._writer.write_message(topic, message, log_time=log_time_ns, publish_time=log_time_ns)
+
+    def add_metadata(self, name: str, record: dict[str, str]) -> None:
+        self._writer.add_metadata(name, record)
+
+
 class CameraStreamWriter(_AtomicMcapWriter):
     """Write one camera's JPEG frames: `with CameraStreamWriter(path, 0, "cam0") as w: w.add(t_ns, jpeg)`."""
 

@@ -18,16 +18,11 @@ import numpy as np
 import pandas as pd
 
 from pingpong.frames import FRAME_NS
+from pingpong.reports.tables import threshold_row as _row
 
 FAULTS = ("net", "out", "double_bounce")  # the twin's faults, named alike by curation
 DATA_RULES = ("few_points", "no_incoming", "short_history", "ball_gaps", "pose_gaps", "paddle_gaps")
 VISIBLE_BOUNCE_VZ = -1.0  # m/s: a bounce counts as visible when the ball falls at least this fast
-
-
-def _row(quantity: str, value: float, unit: str, threshold: float, better: str = "below") -> dict:
-    ok = value < threshold if better == "below" else value >= threshold
-    return {"quantity": quantity, "value": value, "unit": unit, "threshold": threshold,
-            "must_be": better, "ok": bool(ok)}
 
 
 def match_times(true_ns, found_ns, tol_ns: int = FRAME_NS) -> tuple[np.ndarray, np.ndarray]:

@@ -10,12 +10,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from pingpong.common.camera import Camera
 from pingpong.frames import ROT_COLUMNS
-
-
-def _row(quantity: str, value: float, unit: str, threshold: float, better: str = "below") -> dict:
-    ok = value < threshold if better == "below" else value >= threshold
-    return {"quantity": quantity, "value": value, "unit": unit, "threshold": threshold,
-            "must_be": better, "ok": bool(ok)}
+from pingpong.reports.tables import threshold_row as _row
 
 
 def calibration_rows(calibrated: list[Camera], reports: list[dict], truth: list[Camera]) -> list[dict]:

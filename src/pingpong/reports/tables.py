@@ -17,3 +17,11 @@ def write_report_table(df: pd.DataFrame, md_path, csv_path, title: str, caption:
 def table_paths(stem) -> tuple[Path, Path]:
     stem = Path(stem)
     return stem.with_suffix(".md"), stem.with_suffix(".csv")
+
+
+def threshold_row(quantity: str, value: float, unit: str, threshold: float, better: str = "below") -> dict:
+    """One row of an accuracy table: a measured quantity beside the threshold it must meet
+    ('below': value < threshold; 'at least': value >= threshold)."""
+    ok = value < threshold if better == "below" else value >= threshold
+    return {"quantity": quantity, "value": value, "unit": unit, "threshold": threshold,
+            "must_be": better, "ok": bool(ok)}

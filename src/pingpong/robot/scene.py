@@ -37,12 +37,9 @@ from foxglove_schemas_protobuf.Pose_pb2 import Pose
 from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
 from foxglove_schemas_protobuf.SceneEntityDeletion_pb2 import SceneEntityDeletion
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
-from mcap.writer import CompressionType
-from mcap_protobuf.writer import Writer as ProtobufWriter
 from scipy.spatial.transform import Rotation
 
-from pingpong.common.atomic import atomic_path
-from pingpong.curation.labels import BALL, N_POINTS, PADDLE_ROTATION
+from pingpong.curation.labels import BALL, PADDLE_POSITION, PADDLE_ROTATION
 from pingpong.frames import (
     BALL_RADIUS,
     MODEL_JOINTS,
@@ -53,6 +50,7 @@ from pingpong.frames import (
     TABLE_HALF_LENGTH,
     TABLE_HALF_WIDTH,
 )
+from pingpong.io.mcap_io import SceneWriter
 from pingpong.robot.evaluate import Controller, Prediction, SimSettings, sim_settings, simulate_hit
 from pingpong.robot.flights import prediction_series
 from pingpong.robot.model import PADDLE_RADIUS, URDF_PATH, Robot
@@ -160,7 +158,7 @@ def episode_scene(robot: Robot, hit, camera_ns: np.ndarray, flight: tuple[np.nda
     joints = np.full((len(index), len(MODEL_JOINTS), 3), np.nan)
     joints[pre] = inputs[k_input, :3 * len(MODEL_JOINTS)].reshape(-1, len(MODEL_JOINTS), 3)
     paddle = np.full((len(index), 3), np.nan)
-    paddle[pre] = inputs[k_input, 3 * (N_POINTS - 1):3 * N_POINTS]
+    paddle[pre] = inputs[k_input, PADDLE_POSITION]
     rotation = np.full((len(index), 3, 3), np.nan)
     rotation[pre] = inputs[k_input, PADDLE_ROTATION].reshape(-1, 3, 3)
 
@@ -431,11 +429,9 @@ def write_scene_mcap(path, scene: SceneEpisode, robot: Robot, visuals: pin.Geome
                      metadata: dict[str, dict[str, str]] | None = None) -> None:
     """The scene as an MCAP (protobuf foxglove.SceneUpdate and FrameTransforms, zstd chunks), written
     atomically; the episode's info goes into the metadata record 'episode', beside any given records."""
-    with atomic_path(path) as tmp, open(tmp, "wb") as f:
-        writer = ProtobufWriter(f, compression=CompressionType.ZSTD)
+    with SceneWriter(path) as writer:
         for topic, log_time, message in scene_messages(scene, robot, visuals):
-            writer.write_message(topic, message, log_time=log_time, publish_time=log_time)
+            writer.add(topic, log_time, message)
         writer.add_metadata("episode", {key: str(value) for key, value in scene.info.items()})
         for name, record in (metadata or {}).items():
             writer.add_metadata(name, record)
-        writer.finish()
