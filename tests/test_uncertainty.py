@@ -112,6 +112,30 @@ def test_quantile_heads_learn_heteroscedastic_quantiles():
     assert np.allclose(q[:, 1], expected, rtol=0.25) and np.allclose(q[:, 0], -expected, rtol=0.25)
 
 
+def test_error_head_learns_which_hits_are_hard(tmp_path):
+    """Errors 10x larger on hits whose channel 0 is high: the head, trained on 150 hits, ranks 150
+    unseen hits by that (within-frame Spearman > 0.45; knowing which hits are hard gives 0.75, a
+    constant 0) and round-trips through its artifact."""
+    from pingpong.common.artifacts import Provenance
+    from pingpong.uncertainty import error_head as head
+
+    rng = np.random.default_rng(11)
+    n = 300
+    X = rng.normal(size=(n, 40, 39)).astype(np.float32)
+    hard = X[:, -31:-1, 0].mean(axis=1) > 0  # visible over the prediction frames
+    X[:, -31:-1, 0] += np.where(hard, 1.0, -1.0)[:, None]
+    errors = np.abs(rng.normal(size=(n, 30))) * np.where(hard, 0.5, 0.05)[:, None]
+    pred = rng.normal(0, 0.3, size=(n, 30))
+    net = head.fit_error_head(X[:150], pred[:150], errors[:150], rng, epochs=30)
+    u = head.predict_error(net, X[150:], pred[150:])
+    frames = np.tile(FRAMES_BEFORE_HIT, 150)
+    assert (u > 0).all() and within_frames(spearman, u.ravel(), errors[150:].ravel(), frames) > 0.45
+    head.save_error_head(net, tmp_path / "head", Provenance.of("uncertainty"))
+    assert np.allclose(head.predict_error(head.load_error_head(tmp_path / "head"), X[150:], pred[150:]), u)
+    with pytest.raises(ValueError, match="finite"):
+        head.fit_error_head(X[:10], pred[:10], np.full((10, 30), np.nan), rng)
+
+
 def test_spearman_and_within_frame_hand_computed():
     assert spearman([1, 2, 3, 4], [1, 3, 2, 4]) == pytest.approx(1 - 6 * 2 / (4 * 15))  # sum d^2 = 2
     assert math.isnan(spearman([2, 2, 2, 2], [1, 3, 2, 4]))  # constant: no ranking
@@ -180,13 +204,14 @@ def test_fit_estimators_on_a_toy_dataset():
         "hit": np.repeat(np.arange(n), 30), "frames_before_hit": np.tile(FRAMES_BEFORE_HIT, n),
         "a1": 0.0, "a2": 0.0, "b": 0.0, "strike_x_pred": rng.normal(0, 0.3, 30 * n)}))
     ensemble = rows["strike_x_pred"].to_numpy() + rng.normal(0, 0.05, size=(3, len(rows)))
-    tables, fitted, knn, heads = fit_estimators(rows, frame_features(X, FRAMES_BEFORE_HIT), ensemble, 0.9, 5,
-                                                {"epochs": 20}, rng)
-    assert set(tables) == set(ESTIMATORS) and knn.k == 5
+    tables, fitted, models = fit_estimators(rows, frame_features(X, FRAMES_BEFORE_HIT), X, ensemble, 0.9, 5,
+                                            {"epochs": 20}, {"epochs": 2}, rng)
+    assert set(tables) == set(ESTIMATORS) and models["knn"].k == 5
+    assert -1 <= fitted["diagnostics"]["member_error_spearman_within_frame"] <= 1
     for name, table in tables.items():
         assert len(table) == 30 * 30 and set(table["split"]) == {"calibration", "test"}
         assert (table["uncertainty"] >= 0).all(), name
         interval = table["lower"].notna()
         assert (table.loc[interval, "lower"] <= table.loc[interval, "upper"]).all()
-        assert interval.all() == (name not in ("ensemble", "knn", "time_to_hit"))
+        assert interval.all() == (name not in ("ensemble", "knn", "time_to_hit", "error_head"))
     assert np.isfinite(fitted["conformal"]["quantile"])  # 15 calibration hits >= 9

@@ -42,6 +42,8 @@ rule fit_uncertainty:
         knn_sidecar="processed/uncertainty/knn.json",
         heads="processed/uncertainty/quantile_heads.safetensors",
         heads_sidecar="processed/uncertainty/quantile_heads.json",
+        error_head="processed/uncertainty/error_head.safetensors",
+        error_head_sidecar="processed/uncertainty/error_head.json",
     params:
         settings=UNCERTAINTY,
         seed=config["seed"],
@@ -57,11 +59,14 @@ rule fit_uncertainty:
 rule report_uncertainty:
     input:
         tables=expand("processed/uncertainty/{estimator}.parquet", estimator=ESTIMATORS),
+        fitted="processed/uncertainty/estimators.json",
     output:
         md="reports/tables/uncertainty.md",
         csv="reports/tables/uncertainty.csv",
         frames_md="reports/tables/uncertainty_by_frame.md",
         frames_csv="reports/tables/uncertainty_by_frame.csv",
+        verdict_md="reports/tables/uncertainty_verdict.md",
+        verdict_csv="reports/tables/uncertainty_verdict.csv",
         scatter=report(
             "reports/figures/uncertainty_error_vs_uncertainty.png",
             caption="../report/uncertainty_scatter.rst",
@@ -77,8 +82,14 @@ rule report_uncertainty:
             caption="../report/uncertainty_sparsification.rst",
             category="uncertainty",
         ),
+        spearman_by_frame=report(
+            "reports/figures/uncertainty_spearman_by_frame.png",
+            caption="../report/uncertainty_spearman_by_frame.rst",
+            category="uncertainty",
+        ),
     params:
         coverage=UNCERTAINTY["coverage"],
+        seed=config["seed"],
         code=code("report_uncertainty.py"),
     log:
         "logs/report_uncertainty.log",

@@ -3,20 +3,19 @@ calibration and test hits; one table per estimator, the fitted estimators beside
 
 import numpy as np
 
-from pingpong.common.artifacts import Schema, read_table, write_json, write_table
+from pingpong.common.artifacts import read_table, write_json, write_table
 from pingpong.common.script import run_stage
 from pingpong.common.seeding import rng_for
 from pingpong.curation.dataset import DATASET, dataset_arrays
 from pingpong.learning.cv import PREDICTIONS
 from pingpong.learning.models import FRAMES_BEFORE_HIT, load_net
 from pingpong.learning.train import predict, strike_points
+from pingpong.uncertainty.error_head import save_error_head
 from pingpong.uncertainty.estimators import fit_estimators, frame_rows
 from pingpong.uncertainty.features import frame_features
 from pingpong.uncertainty.knn import save_knn
 from pingpong.uncertainty.quantile_heads import save_heads
-from pingpong.uncertainty.tables import UNCERTAINTY
-
-FITTED = Schema("uncertainty_estimators", 1)
+from pingpong.uncertainty.tables import FITTED, UNCERTAINTY
 
 
 def _json_safe(value):
@@ -38,15 +37,17 @@ def main(ctx):
     members = [load_net(f.removesuffix(".safetensors")) for f in ctx.input.members]
     ensemble_strike = np.stack([strike_points(predict(net, X)).reshape(-1) for net in members])
     heads_settings = {"hidden": settings["quantile_hidden"], "epochs": settings["quantile_epochs"]}
-    tables, fitted, knn, heads = fit_estimators(rows, features, ensemble_strike, settings["coverage"],
-                                                settings["knn_k"], heads_settings,
-                                                rng_for(p["seed"], "quantile_heads"))
+    error_head_settings = {"hidden": settings["error_head_hidden"], "epochs": settings["error_head_epochs"]}
+    tables, fitted, models = fit_estimators(rows, features, X, ensemble_strike, settings["coverage"],
+                                            settings["knn_k"], heads_settings, error_head_settings,
+                                            rng_for(p["seed"], "uncertainty"))
     prov = ctx.provenance()
     for path in ctx.output.tables:
         write_table(tables[path.rsplit("/", 1)[1].removesuffix(".parquet")], path, UNCERTAINTY, prov)
     write_json(_json_safe(fitted), ctx.output.fitted, FITTED, prov)
-    save_knn(knn, ctx.output.knn.removesuffix(".safetensors"), prov)
-    save_heads(heads, ctx.output.heads.removesuffix(".safetensors"), prov)
+    save_knn(models["knn"], ctx.output.knn.removesuffix(".safetensors"), prov)
+    save_heads(models["quantile_heads"], ctx.output.heads.removesuffix(".safetensors"), prov)
+    save_error_head(models["error_head"], ctx.output.error_head.removesuffix(".safetensors"), prov)
 
 
 run_stage(main, globals().get("snakemake"), "fit_uncertainty")

@@ -95,6 +95,9 @@ class Normaliser(nn.Module):
 class AnticipationNet(nn.Module):
     """Recurrent stack (batch_first) + an MLP applied to every hidden state: (N, T, 39) -> (N, T, 3).
 
+    n_output: the MLP's outputs per frame (3: the path parameters; the uncertainty stage's error head
+    reuses the stack with one).
+
     mlp_layers counts the hidden layers of width mlp_hidden (ReLU, dropout) before the linear
     output layer; dropout is also applied between recurrent layers. velocity: append each input's
     change per second (`with_velocity`, see the module docstring). Weights are initialised from
@@ -103,13 +106,13 @@ class AnticipationNet(nn.Module):
 
     def __init__(self, cell: str, *, n_input: int = N_INPUT, rnn_hidden: int, rnn_layers: int,
                  mlp_hidden: int, mlp_layers: int, dropout: float = 0.0, velocity: bool = False,
-                 seed: int = 0):
+                 n_output: int = 3, seed: int = 0):
         super().__init__()
         if cell not in CELLS:
             raise ValueError(f"AnticipationNet: cell '{cell}' is not one of {sorted(CELLS)}")
         self.architecture = dict(cell=cell, n_input=n_input, rnn_hidden=rnn_hidden, rnn_layers=rnn_layers,
                                  mlp_hidden=mlp_hidden, mlp_layers=mlp_layers, dropout=dropout,
-                                 velocity=bool(velocity))
+                                 velocity=bool(velocity), n_output=n_output)
         self.velocity = bool(velocity)
         n_features = 2 * n_input if velocity else n_input
         with torch.random.fork_rng(devices=[]):
@@ -121,7 +124,7 @@ class AnticipationNet(nn.Module):
             for _ in range(mlp_layers):
                 layers += [nn.Linear(width, mlp_hidden), nn.ReLU(), nn.Dropout(dropout)]
                 width = mlp_hidden
-            self.head = nn.Sequential(*layers, nn.Linear(width, 3))
+            self.head = nn.Sequential(*layers, nn.Linear(width, n_output))
 
     def features(self, x: torch.Tensor, lengths=None) -> torch.Tensor:
         """The recurrent stack's input before normalisation: x, with its velocities if the net uses them."""

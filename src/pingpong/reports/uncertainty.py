@@ -114,3 +114,19 @@ def plot_sparsification(tables: dict[str, pd.DataFrame], path) -> None:
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
     _save(fig, path)
+
+
+def plot_spearman_by_frame(by_frame: pd.DataFrame, path) -> None:
+    """Within-frame Spearman of every estimator that ranks within a frame, against frames before the
+    hit: where in the approach an uncertainty says something about a single hit's error."""
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for name, g in by_frame.groupby("estimator", sort=False):
+        if g["spearman"].notna().any():
+            ax.plot(-g["frames_before_hit"], g["spearman"], marker=".",
+                    linestyle="-" if name in PAPER_ESTIMATORS else ":", label=name)
+    ax.axhline(0.0, color="k", linewidth=0.8)
+    ax.set_xlabel("frames before the hit (100 Hz)")
+    ax.set_ylabel("Spearman(uncertainty, |error|) within the frame")
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3)
+    _save(fig, path)
