@@ -2,6 +2,7 @@
 inline, and offers other files only as downloads)."""
 
 import html
+import re
 
 import pandas as pd
 
@@ -19,8 +20,14 @@ def table_page(markdown: str, table: pd.DataFrame) -> str:
         raise ValueError(f"report table Markdown must start with '# title'; got {lines[:1]}")
     title = lines[0][2:].strip()
     caption = "\n".join(line for line in lines[1:] if not line.lstrip().startswith("|")).strip()
-    paragraphs = "".join(f"<p>{html.escape(p.strip())}</p>" for p in caption.split("\n\n") if p.strip())
+    paragraphs = "".join(f"<p>{_bold(html.escape(p.strip()))}</p>"
+                         for p in caption.split("\n\n") if p.strip())
     body = table.to_html(index=False, float_format=lambda v: f"{v:.3g}", na_rep="", border=0)
     return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
             f"<style>{PAGE_STYLE}</style></head><body><h1>{html.escape(title)}</h1>{paragraphs}{body}"
             "</body></html>\n")
+
+
+def _bold(text: str) -> str:
+    """Markdown's **bold** (a caption's verdict line) as <strong>."""
+    return re.sub(r"\*\*(.+?)\*\*", r"<strong>\1</strong>", text)
