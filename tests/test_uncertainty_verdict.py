@@ -6,8 +6,13 @@ import pandas as pd
 from scipy import stats
 
 from pingpong.learning.models import FRAMES_BEFORE_HIT
-from pingpong.reports.uncertainty import summary_table
-from pingpong.reports.uncertainty_verdict import bootstrap_within_frame, verdict_table, verdict_text
+from pingpong.reports.uncertainty import by_frame_table, summary_table
+from pingpong.reports.uncertainty_verdict import (
+    bootstrap_within_frame,
+    verdict_table,
+    verdict_text,
+    window_text,
+)
 
 N_HITS = 60
 
@@ -47,6 +52,8 @@ def test_an_estimator_that_knows_the_errors_meets_every_criterion_and_noise_does
     summary = pd.concat([summary, summary.iloc[[0]].assign(estimator="error_head")])
     text = verdict_text(verdict.reset_index(), summary, diagnostics, 0.9, tables["ensemble"]["abs_error"])
     assert text.startswith("**Verdict: knows_the_error meet every criterion.**")
+    where = window_text(by_frame_table(tables))
+    assert where.count("knows_the_error") == 2, where
     assert "no estimator" in verdict_text(verdict.reset_index().iloc[1:], summary, diagnostics, 0.9,
                                           tables["ensemble"]["abs_error"])
 

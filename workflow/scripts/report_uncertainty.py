@@ -19,6 +19,7 @@ from pingpong.reports.uncertainty_verdict import (
     PAPER_WIDTH_CM,
     verdict_table,
     verdict_text,
+    window_text,
 )
 from pingpong.uncertainty.tables import FITTED, UNCERTAINTY
 
@@ -60,7 +61,7 @@ def main(ctx):
     verdict = verdict_table(tables, coverage, rng_for(ctx.params["seed"], "uncertainty_verdict"))
     test = tables["ensemble"][tables["ensemble"]["split"] == "test"]
     text = verdict_text(verdict, summary, read_json(ctx.input.fitted, FITTED)["diagnostics"], coverage,
-                        test["abs_error"].to_numpy())
+                        test["abs_error"].to_numpy()) + "\n\n" + window_text(by_frame)
     verdict_caption = VERDICT_CAPTION.format(
         verdict=text, coverage=coverage, n_boot=N_BOOTSTRAP, slack=COVERAGE_SLACK,
         narrow=FAR_NARROWER * PAPER_WIDTH_CM, share=FAR_NARROWER, paper=PAPER_WIDTH_CM)

@@ -23,6 +23,7 @@ PAPER_WIDTH_CM = 130.0  # the paper's mean 90% conformal interval
 FAR_NARROWER = 0.75  # "far narrower": at most 3/4 of the paper's width (97.5 cm)
 COVERAGE_SLACK = 0.03  # "at nominal coverage": within 3 points
 N_BOOTSTRAP = 500
+LATE_FRAMES = 10  # the last 100 ms before the hit, where the paddle already shows the shot
 
 
 def hit_frame_matrix(table: pd.DataFrame, column: str) -> np.ndarray:
@@ -130,3 +131,16 @@ def verdict_text(verdict: pd.DataFrame, summary: pd.DataFrame, diagnostics: dict
             f"test errors is {p90_cm:.0f} cm, so an interval that cannot tell easy hits from hard ones "
             f"is about {2 * p90_cm:.0f} cm wide.")
     return "\n\n".join(lines)
+
+
+def window_text(by_frame: pd.DataFrame) -> str:
+    """Where in the approach ranking works: the best mean within-frame Spearman (reports.uncertainty's
+    by_frame_table) over the last LATE_FRAMES frames, and over the frames before them."""
+    rho = by_frame.dropna(subset=["spearman"])
+    late = rho["frames_before_hit"] <= LATE_FRAMES
+    parts = []
+    for label, part in ((f"the last {LATE_FRAMES} frames before the hit", rho[late]),
+                        ("the frames before those", rho[~late])):
+        mean = part.groupby("estimator")["spearman"].mean()
+        parts.append(f"{mean.max():.2f} ({mean.idxmax()}) over {label}")
+    return "Where: the best mean within-frame Spearman is " + "; ".join(parts) + "."
