@@ -52,6 +52,9 @@ def test_an_estimator_that_knows_the_errors_meets_every_criterion_and_noise_does
     summary = pd.concat([summary, summary.iloc[[0]].assign(estimator="error_head")])
     text = verdict_text(verdict.reset_index(), summary, diagnostics, 0.9, tables["ensemble"]["abs_error"])
     assert text.startswith("**Verdict: knows_the_error meet every criterion.**")
+    nulls = dict.fromkeys(diagnostics)  # estimators.json writes NaN as null
+    assert "errors nan)" in verdict_text(verdict.reset_index(), summary, nulls, 0.9,
+                                         tables["ensemble"]["abs_error"])
     where = window_text(by_frame_table(tables))
     assert where.count("knows_the_error") == 2, where
     assert "no estimator" in verdict_text(verdict.reset_index().iloc[1:], summary, diagnostics, 0.9,

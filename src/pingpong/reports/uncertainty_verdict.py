@@ -120,8 +120,9 @@ def verdict_text(verdict: pd.DataFrame, summary: pd.DataFrame, diagnostics: dict
                      f"{narrowest['estimator']}, {narrowest['mean_width_cm']:.0f} cm mean width (coverage "
                      f"{narrowest['coverage']:.3f}), against the paper's {PAPER_WIDTH_CM:.0f} cm.")
     if diagnostics:
-        agreement = diagnostics["member_error_spearman_within_frame"]
-        head_fit = diagnostics["error_head_training_spearman_within_frame"]
+        keys = ("member_error_spearman_within_frame", "error_head_training_spearman_within_frame")
+        # estimators.json writes NaN (a constant ranking) as null
+        agreement, head_fit = (float("nan") if diagnostics[k] is None else diagnostics[k] for k in keys)
         lines.append(
             "Why: the ensemble's members err on the same hits (within-frame Spearman between two "
             f"members' absolute errors {agreement:.2f}), so their spread cannot see most of the error; "
