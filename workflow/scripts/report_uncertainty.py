@@ -41,10 +41,10 @@ VERDICT_CAPTION = """{verdict}
 
 Every estimator beyond the paper's three baselines (ensemble, k-NN, plain conformal) on the test hits,
 at {coverage:.0%} nominal coverage. spearman_gain, ause_gain: the smallest gain over the three baselines
-in within-frame Spearman (higher is better) and within-frame AUSE (lower is better), with the 95%
-interval of that baseline's gain from {n_boot} paired bootstrap resamples of whole test hits, and the
-lowest bound over all three. A constant (plain conformal, time-to-hit and Mondrian within a frame) ranks
-nothing and counts as Spearman 0. clearly_better: every bound above 0; nominal_coverage: pooled
+in within-frame Spearman (higher is better) and within-frame AUSE (lower is better); *_low95: the
+lowest, over the three baselines, of the gain's 95% lower bound from {n_boot} paired bootstrap
+resamples of whole test hits. A constant (plain conformal, time-to-hit and Mondrian within a frame) ranks
+nothing and counts as Spearman 0. clearly_better: both lower bounds above 0; nominal_coverage: pooled
 coverage within {slack:.0%} of nominal; far_narrower: mean width at most {narrow:.0f} cm ({share:.0%} of the
 paper's {paper:.0f} cm); meets_all: all three."""
 
