@@ -17,6 +17,7 @@ from pingpong.reports.uncertainty_verdict import (
     FAR_NARROWER,
     N_BOOTSTRAP,
     PAPER_WIDTH_CM,
+    hit_frame_matrix,
     verdict_table,
     verdict_text,
     window_text,
@@ -52,16 +53,15 @@ paper's {paper:.0f} cm); meets_all: all three."""
 def main(ctx):
     tables = {path.rsplit("/", 1)[1].removesuffix(".parquet"): read_table(path, UNCERTAINTY)
               for path in ctx.input.tables}
-    caption = CAPTION.format(coverage=ctx.params["coverage"])
+    coverage = ctx.params["coverage"]
+    caption = CAPTION.format(coverage=coverage)
     o = ctx.output
     by_frame = by_frame_table(tables)
     summary = summary_table(tables)
     write_report_table(summary, o.md, o.csv, "Uncertainty estimators", caption)
-    coverage = ctx.params["coverage"]
     verdict = verdict_table(tables, coverage, rng_for(ctx.params["seed"], "uncertainty_verdict"))
-    test = tables["ensemble"][tables["ensemble"]["split"] == "test"]
     text = verdict_text(verdict, summary, read_json(ctx.input.fitted, FITTED)["diagnostics"], coverage,
-                        test["abs_error"].to_numpy()) + "\n\n" + window_text(by_frame)
+                        hit_frame_matrix(tables["ensemble"], "abs_error")) + "\n\n" + window_text(by_frame)
     verdict_caption = VERDICT_CAPTION.format(
         verdict=text, coverage=coverage, n_boot=N_BOOTSTRAP, slack=COVERAGE_SLACK,
         narrow=FAR_NARROWER * PAPER_WIDTH_CM, share=FAR_NARROWER, paper=PAPER_WIDTH_CM)

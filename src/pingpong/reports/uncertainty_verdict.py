@@ -87,10 +87,11 @@ def verdict_table(tables: dict[str, pd.DataFrame], coverage: float, rng: np.rand
 def verdict_text(verdict: pd.DataFrame, summary: pd.DataFrame, diagnostics: dict, coverage: float,
                  test_errors: np.ndarray) -> str:
     """The report's answer, from the numbers: which estimators meet every criterion, or that none does
-    and how close the best come, with the diagnostics (fit_uncertainty's) that say why."""
+    and how close the best come, with the diagnostics (fit_uncertainty's) that say why. test_errors:
+    the test hits' absolute errors (any shape)."""
     base = summary.set_index("estimator")
     p90_cm = 100 * float(np.quantile(test_errors, coverage))
-    best_rank = verdict.sort_values("spearman_within_frame").iloc[-1]
+    best = verdict.sort_values("spearman_within_frame").iloc[-1]
     covered = verdict[verdict["nominal_coverage"]]
     lines = []
     winners = verdict.loc[verdict["meets_all"], "estimator"].tolist()
@@ -98,7 +99,7 @@ def verdict_text(verdict: pd.DataFrame, summary: pd.DataFrame, diagnostics: dict
         lines.append(f"**Verdict: {', '.join(winners)} meet every criterion.**")
     else:
         lines.append("**Verdict: no estimator meets every criterion on these data.**")
-    best, ens, knn = best_rank, base.loc["ensemble"], base.loc["knn"]
+    ens, knn = base.loc["ensemble"], base.loc["knn"]
     lines.append(
         f"Best within-frame ranking: {best['estimator']} (Spearman {best['spearman_within_frame']:.2f}, "
         f"AUSE {best['ause_within_frame']:.2f}) against the ensemble's "
@@ -110,18 +111,17 @@ def verdict_text(verdict: pd.DataFrame, summary: pd.DataFrame, diagnostics: dict
         lines.append(f"Narrowest intervals at nominal coverage ({coverage:.0%} +- {COVERAGE_SLACK:.0%}): "
                      f"{narrowest['estimator']}, {narrowest['mean_width_cm']:.0f} cm mean width (coverage "
                      f"{narrowest['coverage']:.3f}), against the paper's {PAPER_WIDTH_CM:.0f} cm.")
-    if diagnostics:
-        keys = ("member_error_spearman_within_frame", "error_head_training_spearman_within_frame")
-        # estimators.json writes NaN (a constant ranking) as null
-        agreement, head_fit = (float("nan") if diagnostics[k] is None else diagnostics[k] for k in keys)
-        lines.append(
-            "Why: the ensemble's members err on the same hits (within-frame Spearman between two "
-            f"members' absolute errors {agreement:.2f}), so their spread cannot see most of the error; "
-            f"the learned error head ranks its own training hits' out-of-fold errors at {head_fit:.2f} "
-            f"but unseen test hits at {base.loc['error_head', 'spearman_within_frame']:.2f}: with these "
-            f"few hits the errors are not learnable from the inputs. The {coverage:.0%} quantile of the "
-            f"test errors is {p90_cm:.0f} cm, so an interval that cannot tell easy hits from hard ones "
-            f"is about {2 * p90_cm:.0f} cm wide.")
+    keys = ("member_error_spearman_within_frame", "error_head_training_spearman_within_frame")
+    # estimators.json writes NaN (a constant ranking) as null
+    agreement, head_fit = (float("nan") if diagnostics[k] is None else diagnostics[k] for k in keys)
+    lines.append(
+        "Why: the ensemble's members err on the same hits (within-frame Spearman between two "
+        f"members' absolute errors {agreement:.2f}), so their spread cannot see most of the error; "
+        f"the learned error head ranks its own training hits' out-of-fold errors at {head_fit:.2f} "
+        f"but unseen test hits at {base.loc['error_head', 'spearman_within_frame']:.2f}: with these "
+        f"few hits the errors are not learnable from the inputs. The {coverage:.0%} quantile of the "
+        f"test errors is {p90_cm:.0f} cm, so an interval that cannot tell easy hits from hard ones "
+        f"is about {2 * p90_cm:.0f} cm wide.")
     return "\n\n".join(lines)
 
 

@@ -42,12 +42,12 @@ def fit_error_head(X: np.ndarray, strike_pred: np.ndarray, abs_errors: np.ndarra
     net.normaliser.fit(net.features(x))
     target = torch.from_numpy(np.log(np.asarray(abs_errors, np.float32) + ERROR_FLOOR))
     optimiser = torch.optim.AdamW(net.parameters(), lr=lr, weight_decay=weight_decay)
-    order = np.random.default_rng(seed)
+    shuffle = np.random.default_rng(seed)  # minibatch order
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(seed)  # dropout masks
         net.train()
         for _ in range(epochs):
-            for batch in np.array_split(order.permutation(len(x)), min(N_BATCHES, len(x))):
+            for batch in np.array_split(shuffle.permutation(len(x)), min(N_BATCHES, len(x))):
                 loss = (prediction_frames(net(x[batch]))[..., 0] - target[batch]).abs().mean()
                 optimiser.zero_grad(set_to_none=True)
                 loss.backward()
