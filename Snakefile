@@ -1,4 +1,4 @@
-# The anticipatory ping-pong pipeline. Read README.md first; DESIGN.md is the contract.
+# The anticipatory ping-pong pipeline. Read README.md first; docs/architecture.md is the map and the contract.
 import sys
 from pathlib import Path
 
@@ -7,7 +7,7 @@ from snakemake.utils import min_version
 min_version("9.0")
 
 # The workflow's own imports come from this checkout; jobs import the installed package
-# (`pip install -e .` of this checkout, which `make` does).
+# (`pip install -e .` of this checkout, which `make` does) and check at start that it is this one.
 sys.path.insert(0, str(Path(workflow.basedir) / "src"))
 
 from pingpong.common.config import validate_config
@@ -27,6 +27,9 @@ include: "workflow/rules/learning.smk"
 include: "workflow/rules/uncertainty.smk"
 include: "workflow/rules/robot.smk"
 include: "workflow/rules/report.smk"
+
+
+check_stage_rules(workflow.rules, workflow.basedir)
 
 
 report: "workflow/report/workflow.rst"

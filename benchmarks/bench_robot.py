@@ -13,6 +13,7 @@ default 10 ms step and at 1 ms.
 import argparse
 import contextlib
 from dataclasses import replace
+from pathlib import Path
 from unittest import mock
 
 import numpy as np
@@ -25,6 +26,8 @@ from pingpong.robot.control import ControlParams, control_step
 from pingpong.robot.episode import EpisodeParams, run_episode
 from pingpong.robot.model import load_robot
 from pingpong.twin.ball import aim_shots, simulate_flight, stop_at_y
+
+ROBOT_DIR = Path(__file__).resolve().parents[1] / "config/robot"
 
 
 def full_recompute_jacobian(robot, q):
@@ -80,7 +83,7 @@ def main():
     parser.add_argument("--episodes", type=int, default=40)
     parser.add_argument("--repeats", type=int, default=3)
     args = parser.parse_args()
-    robot = load_robot()
+    robot = load_robot(ROBOT_DIR / "iiwa14_ridgeback.urdf", ROBOT_DIR / "limits.yaml")
     params = ControlParams()
 
     # the variants take turns within each repeat, so a load change on the machine hits them alike

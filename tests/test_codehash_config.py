@@ -1,11 +1,15 @@
 """Stage code hashes follow imports; config validation names the key and the expected type."""
 
+import re
 from pathlib import Path
 
 import pytest
+from workflow_util import copy_checkout, snakemake
 
-from pingpong.common.codehash import code_hash
+from pingpong.common.codehash import code_files, code_hash, stage_code_hash
 from pingpong.common.config import ConfigError, validate_config
+from pingpong.common.script import check_checkout
+from pingpong.common.stages import STAGE_SCRIPT, entry_file
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -30,8 +34,8 @@ def _tree(tmp_path):
 
 
 def _hash(root, script):
-    code_hash.cache_clear()
-    return code_hash(script, str(root))
+    code_files.cache_clear()
+    return code_hash(script, root=str(root))
 
 
 def test_hash_follows_absolute_and_relative_imports(tmp_path):
@@ -51,6 +55,40 @@ def test_any_edit_to_the_script_changes_the_hash(tmp_path):
     before = _hash(root, "workflow/scripts/twin.py")
     (root / "workflow/scripts/twin.py").write_text("import pingpong.twin.ball as ball  # edited\n")
     assert _hash(root, "workflow/scripts/twin.py") != before
+
+
+def workflow_rules() -> list[str]:
+    """Every rule of the workflow, read from its rule files."""
+    return [name for smk in sorted((ROOT / "workflow/rules").glob("*.smk"))
+            for name in re.findall(r"^rule (\w+):", smk.read_text(), re.M)]
+
+
+def _stage_files(rule):
+    return code_files(STAGE_SCRIPT, entry_file(rule, ROOT), root=str(ROOT))
+
+
+def test_every_rules_hash_covers_the_script_and_its_entry():
+    rules = workflow_rules()
+    assert len(rules) > 25 and "detection" in rules
+    for rule in rules:
+        files = {str(f.relative_to(ROOT)) for f in _stage_files(rule)}
+        expected = {STAGE_SCRIPT, f"src/pingpong/stages/{rule}.py", "src/pingpong/common/script.py"}
+        assert expected <= files, rule
+    # an entry's own imports are covered: detection reaches the detector, not the twin
+    files = {f.name for f in _stage_files("detection")}
+    assert "detection.py" in files and "mcap_io.py" in files and "render.py" not in files
+
+
+def test_a_rule_without_an_entry_is_named():
+    with pytest.raises(FileNotFoundError, match="rule 'no_such_rule' has no entry: expected "
+                                                r"src/pingpong/stages/no_such_rule\.py"):
+        stage_code_hash("no_such_rule", str(ROOT))
+
+
+def test_a_job_importing_another_checkouts_package_stops(tmp_path):
+    check_checkout(ROOT)  # this checkout's own package (installed editable, or on PYTHONPATH)
+    with pytest.raises(ImportError, match="imports pingpong from .* but the workflow's code hash is"):
+        check_checkout(tmp_path)
 
 
 SCHEMA = ROOT / "config/schema.yaml"
@@ -78,3 +116,12 @@ def test_shipped_configs_are_valid():
     for name in ("config.yaml", "paper.yaml"):
         path = ROOT / "config" / name
         validate_config(yaml.safe_load(path.read_text()) or {}, SCHEMA)
+
+
+def test_the_workflow_refuses_a_rule_with_another_rules_hash(tmp_path):
+    root = copy_checkout(tmp_path)
+    rules = root / "workflow/rules/perception.smk"
+    rules.write_text(rules.read_text().replace('code=code("detection")', 'code=code("pose2d")', 1))
+    proc = snakemake(root, "-n", configfile="config/config.yaml", check=False)
+    assert proc.returncode != 0
+    assert "rule detection: params.code must be code('detection')" in proc.stdout + proc.stderr

@@ -6,13 +6,13 @@ import pinocchio as pin
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from workflow_util import ROBOT_LIMITS, ROBOT_URDF
 
 from pingpong.frames import STRIKE_Y
 from pingpong.robot.control import ControlParams, braking_speed, control_step
 from pingpong.robot.episode import EpisodeParams, run_episode
 from pingpong.robot.model import (
     N_BASE,
-    URDF_PATH,
     load_robot,
     paddle_jacobian,
     random_configurations,
@@ -22,7 +22,7 @@ from pingpong.robot.model import (
 from pingpong.robot.servo import servo_strike_estimate, split_at_bounce
 from pingpong.twin.ball import GRAVITY, aim_shots, simulate_flight, stop_at_y
 
-ROBOT = load_robot()
+ROBOT = load_robot(ROBOT_URDF, ROBOT_LIMITS)
 LIMIT_TOL = 1e-9  # relative: floating-point rounding only
 
 # Standard DH table of the LBR iiwa 14 R820 (written from KUKA's link lengths, not from the URDF):
@@ -82,14 +82,14 @@ def test_jacobian_is_local_world_aligned(values, direction):
 
 
 def test_urdf_limits_equal_the_published_ones_and_limits_yaml():
-    limits = read_limits()
+    limits = read_limits(ROBOT_LIMITS)
     deg = np.deg2rad
     assert np.allclose(ROBOT.q_max[N_BASE:], deg([170, 120, 170, 120, 170, 120, 175]))
     assert np.allclose(ROBOT.v_max[N_BASE:], deg([85, 85, 100, 75, 130, 135, 135]))
     assert np.allclose(ROBOT.tau_max, [320, 320, 176, 176, 110, 40, 40])
     assert np.allclose(ROBOT.v_max[:N_BASE], 1.1) and np.allclose(ROBOT.a_max[:N_BASE], 15.0)
     assert np.allclose(ROBOT.q_max[:N_BASE] - ROBOT.q_min[:N_BASE], 2.0)  # the 2 m square
-    model = pin.buildModelFromUrdf(str(URDF_PATH))
+    model = pin.buildModelFromUrdf(str(ROBOT_URDF))
     assert np.allclose(model.lowerPositionLimit, limits["q_min"])
     assert np.allclose(model.upperPositionLimit, limits["q_max"])
     assert np.allclose(model.velocityLimit, limits["v_max"])

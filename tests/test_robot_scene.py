@@ -11,6 +11,7 @@ import pytest
 from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory
 from scipy.spatial.transform import Rotation
+from workflow_util import ROBOT_LIMITS, ROBOT_URDF
 
 from pingpong.frames import FRAME_NS, N_INPUT, STRIKE_Y
 from pingpong.robot.evaluate import Controller, Prediction, SimSettings, simulate_hit
@@ -26,7 +27,7 @@ from pingpong.robot.scene import (
 )
 from pingpong.robot.scene_figure import plot_scenes
 
-ROBOT = load_robot()
+ROBOT = load_robot(ROBOT_URDF, ROBOT_LIMITS)
 VISUALS = robot_visuals(ROBOT)
 CAMERA_NS = 1_700_000_000_000_000_000 + FRAME_NS * np.arange(150)  # the session's camera clock
 HIT_FRAME = 50

@@ -8,6 +8,7 @@ import pandas as pd
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from workflow_util import ROBOT_LIMITS, ROBOT_URDF
 
 from pingpong.frames import STRIKE_Y
 from pingpong.reports.robot import bootstrap_hit_difference, mcnemar_exact, robot_table
@@ -24,7 +25,7 @@ from pingpong.robot.flights import hit_flight
 from pingpong.robot.model import N_BASE, load_robot, worst_case_accelerations
 from pingpong.robot.sweep import alpha_grid, best_cell, sweep
 
-ROBOT = load_robot()
+ROBOT = load_robot(ROBOT_URDF, ROBOT_LIMITS)
 FRAMES = np.arange(-30, 0)
 
 

@@ -51,3 +51,7 @@ def mtimes(root: Path, folders=("raw", "interim", "processed", "reports")) -> di
 
 def changed(before: dict, after: dict) -> set[str]:
     return {k for k in after if before.get(k) != after[k]}
+
+
+# the robot's description, which the robot rules take as inputs
+ROBOT_URDF, ROBOT_LIMITS = ROOT / "config/robot/iiwa14_ridgeback.urdf", ROOT / "config/robot/limits.yaml"

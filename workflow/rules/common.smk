@@ -1,13 +1,17 @@
 # Shared helpers of the rules: sessions, cameras and each stage's code hash.
 from pathlib import Path
 
-from pingpong.common.codehash import code_hash
+from pingpong.common.codehash import stage_code_hash
+from pingpong.common.stages import STAGE_SCRIPT as _SCRIPT
 from pingpong.learning.grid import expand_grid
 
+STAGE_SCRIPT = f"../../{_SCRIPT}"  # every rule's script, relative to workflow/rules/
 
-def code(script):
-    """The hash of a stage's script and every pingpong module it imports (see DESIGN.md)."""
-    return code_hash(f"workflow/scripts/{script}", workflow.basedir)
+
+def code(rule):
+    """The code hash of a rule: its entry pingpong.stages.<rule> and all it imports (docs/architecture.md).
+    Every rule passes code(<its own name>); the Snakefile checks that each does."""
+    return stage_code_hash(rule, workflow.basedir)
 
 
 def sessions():
@@ -89,3 +93,16 @@ REPORT_TABLES = {
 
 def report_pages():
     return [f"reports/pages/{stage}/{table}.html" for stage, tables in REPORT_TABLES.items() for table in tables]
+
+
+def check_stage_rules(rules, root):
+    """Every rule but `all` runs the stage script with the code hash of its own entry: a rule that names
+    another rule's hash, or none, would rerun on the wrong edits."""
+    for r in rules:
+        if r.name == "all":
+            continue
+        if not (r.script or "").endswith(_SCRIPT.rsplit("/", 1)[1]):
+            raise WorkflowError(f"rule {r.name}: script must be {_SCRIPT}, not {r.script}")
+        if r.params.get("code") != stage_code_hash(r.name, root):
+            raise WorkflowError(f"rule {r.name}: params.code must be code('{r.name}'), the hash of its entry "
+                                f"src/pingpong/stages/{r.name}.py")

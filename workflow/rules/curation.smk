@@ -14,11 +14,11 @@ rule filtering:
     params:
         cutoff_ball_hz=CURATION["cutoff_ball_hz"],
         cutoff_pose_hz=CURATION["cutoff_pose_hz"],
-        code=code("filtering.py"),
+        code=code("filtering"),
     log:
         "logs/filtering/{session}.log",
     script:
-        "../scripts/filtering.py"
+        STAGE_SCRIPT
 
 
 rule segments:
@@ -32,11 +32,11 @@ rule segments:
     params:
         session="{session}",
         rules=CURATION["rules"],
-        code=code("segments.py"),
+        code=code("segments"),
     log:
         "logs/segments/{session}.log",
     script:
-        "../scripts/segments.py"
+        STAGE_SCRIPT
 
 
 rule dataset:
@@ -57,11 +57,11 @@ rule dataset:
         test_fraction=CURATION["test_fraction"],
         calibration_fraction=CURATION["calibration_fraction"],
         n_folds=config["training"]["n_folds"],
-        code=code("dataset.py"),
+        code=code("dataset"),
     log:
         "logs/dataset.log",
     script:
-        "../scripts/dataset.py"
+        STAGE_SCRIPT
 
 
 rule report_curation:
@@ -78,8 +78,8 @@ rule report_curation:
         csv="reports/tables/curation_accuracy.csv",
     params:
         sessions=sessions(),
-        code=code("report_curation.py"),
+        code=code("report_curation"),
     log:
         "logs/report_curation.log",
     script:
-        "../scripts/report_curation.py"
+        STAGE_SCRIPT

@@ -19,7 +19,7 @@ rule train_cv:
         fold=lambda wc: int(wc.fold),
         settings=TRAIN_SETTINGS,
         seed=config["seed"],
-        code=code("train_cv.py"),
+        code=code("train_cv"),
     log:
         "logs/train_cv/{config_id}_fold{fold}.log",
     benchmark:
@@ -27,7 +27,7 @@ rule train_cv:
     resources:
         gpu=1 if config["device"] == "cuda" else 0,
     script:
-        "../scripts/train_cv.py"
+        STAGE_SCRIPT
 
 
 rule select_model:
@@ -39,11 +39,11 @@ rule select_model:
         csv="reports/tables/cv_results.csv",
     params:
         configs=list(GRID.values()),
-        code=code("select_model.py"),
+        code=code("select_model"),
     log:
         "logs/select_model.log",
     script:
-        "../scripts/select_model.py"
+        STAGE_SCRIPT
 
 
 rule train_final:
@@ -57,7 +57,7 @@ rule train_final:
         ball_only=lambda wc: wc.variant == "ball_only",
         settings=TRAIN_SETTINGS,
         seed=config["seed"],
-        code=code("train_final.py"),
+        code=code("train_final"),
     wildcard_constraints:
         variant="final|ball_only",
     resources:
@@ -67,7 +67,7 @@ rule train_final:
     benchmark:
         "benchmarks/results/train_final/{variant}.tsv"
     script:
-        "../scripts/train_final.py"
+        STAGE_SCRIPT
 
 
 rule predict:
@@ -80,11 +80,11 @@ rule predict:
     output:
         predictions="processed/predictions.parquet",
     params:
-        code=code("predict.py"),
+        code=code("predict"),
     log:
         "logs/predict.log",
     script:
-        "../scripts/predict.py"
+        STAGE_SCRIPT
 
 
 rule report_strike_error:
@@ -97,8 +97,8 @@ rule report_strike_error:
         frames_csv="reports/tables/strike_error_by_frame.csv",
         figure=report("reports/figures/strike_error.png", caption="../report/strike_error.rst", category="learning"),
     params:
-        code=code("report_strike_error.py"),
+        code=code("report_strike_error"),
     log:
         "logs/report_strike_error.log",
     script:
-        "../scripts/report_strike_error.py"
+        STAGE_SCRIPT

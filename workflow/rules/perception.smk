@@ -15,11 +15,11 @@ rule calibration:
         import_units=PERCEPTION["calibration_import_units"],
         strict=PERCEPTION["strict_mcap"],
         take_start_ns=motive_take_start_ns(sessions()[0]),
-        code=code("calibration.py"),
+        code=code("calibration"),
     log:
         "logs/calibration.log",
     script:
-        "../scripts/calibration.py"
+        STAGE_SCRIPT
 
 
 rule paddle:
@@ -34,11 +34,11 @@ rule paddle:
         max_gap_s=PERCEPTION["paddle_max_gap_s"],
         strict=PERCEPTION["strict_mcap"],
         take_start_ns=lambda wc: motive_take_start_ns(wc.session),
-        code=code("paddle.py"),
+        code=code("paddle"),
     log:
         "logs/paddle/{session}.log",
     script:
-        "../scripts/paddle.py"
+        STAGE_SCRIPT
 
 
 rule detection:
@@ -48,13 +48,13 @@ rule detection:
         detections="interim/detections/{session}/{cam}.parquet",
     params:
         strict=PERCEPTION["strict_mcap"],
-        code=code("detection.py"),
+        code=code("detection"),
     log:
         "logs/detection/{session}_{cam}.log",
     benchmark:
         "benchmarks/results/detection/{session}_{cam}.tsv"
     script:
-        "../scripts/detection.py"
+        STAGE_SCRIPT
 
 
 rule pose2d:
@@ -68,11 +68,11 @@ rule pose2d:
         cam="{cam}",
         min_confidence=PERCEPTION["pose_min_confidence"],
         strict=PERCEPTION["strict_mcap"],
-        code=code("pose2d.py"),
+        code=code("pose2d"),
     log:
         "logs/pose2d/{session}_{cam}.log",
     script:
-        "../scripts/pose2d.py"
+        STAGE_SCRIPT
 
 
 rule triangulation:
@@ -91,11 +91,11 @@ rule triangulation:
         cams=lambda wc: session_cameras(wc.session),
         max_reproj_px=PERCEPTION["max_reproj_px"],
         min_views=PERCEPTION["min_views"],
-        code=code("triangulation.py"),
+        code=code("triangulation"),
     log:
         "logs/triangulation/{session}.log",
     script:
-        "../scripts/triangulation.py"
+        STAGE_SCRIPT
 
 
 rule report_perception:
@@ -116,8 +116,8 @@ rule report_perception:
     params:
         sessions=sessions(),
         cams=cameras(),
-        code=code("report_perception.py"),
+        code=code("report_perception"),
     log:
         "logs/report_perception.log",
     script:
-        "../scripts/report_perception.py"
+        STAGE_SCRIPT

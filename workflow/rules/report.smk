@@ -7,11 +7,11 @@ rule report_page:
     output:
         page=report("reports/pages/{stage}/{table}.html", caption="../report/table.rst", category="{stage}"),
     params:
-        code=code("report_page.py"),
+        code=code("report_page"),
     wildcard_constraints:
         stage="|".join(REPORT_TABLES),
         table=r"[a-z_]+",
     log:
         "logs/report_page/{stage}_{table}.log",
     script:
-        "../scripts/report_page.py"
+        STAGE_SCRIPT

@@ -19,7 +19,7 @@ rule simulate_robot:
         dataset="processed/dataset.parquet",
         predictions="processed/predictions.parquet",
         balls=expand("interim/filtered/{session}_ball.parquet", session=sessions()),
-        # the robot's description is read at run time, so it is not in the code hash
+        # the robot's description: read from these inputs, so an edit to either reruns the rule
         limits="config/robot/limits.yaml",
         urdf="config/robot/iiwa14_ridgeback.urdf",
         # the confidence-scaled controller follows the configured estimator's uncertainties
@@ -32,7 +32,7 @@ rule simulate_robot:
     params:
         controller="{controller}",
         sessions=sessions(),
-        code=code("simulate_robot.py"),
+        code=code("simulate_robot"),
         settings=ROBOT_SETTINGS,
     wildcard_constraints:
         controller="|".join(ROBOT_CONTROLLERS),
@@ -41,7 +41,7 @@ rule simulate_robot:
     benchmark:
         "benchmarks/results/simulate_robot/{controller}.tsv"
     script:
-        "../scripts/simulate_robot.py"
+        STAGE_SCRIPT
 
 
 rule report_robot:
@@ -60,11 +60,11 @@ rule report_robot:
         seed=config["seed"],
         n_bootstrap=ROBOT["n_bootstrap"],
         limit_samples=ROBOT["limit_samples"],
-        code=code("report_robot.py"),
+        code=code("report_robot"),
     log:
         "logs/report_robot.log",
     script:
-        "../scripts/report_robot.py"
+        STAGE_SCRIPT
 
 
 rule robot_scene:
@@ -88,8 +88,8 @@ rule robot_scene:
         sessions=sessions(),
         n_hits=ROBOT["scene_hits"],
         settings=ROBOT_SETTINGS,
-        code=code("robot_scene.py"),
+        code=code("robot_scene"),
     log:
         "logs/robot_scene.log",
     script:
-        "../scripts/robot_scene.py"
+        STAGE_SCRIPT

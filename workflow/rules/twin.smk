@@ -10,11 +10,11 @@ rule twin_rig:
         n_cameras=TWIN["n_cameras"],
         width=TWIN["width"],
         height=TWIN["height"],
-        code=code("twin_rig.py"),
+        code=code("twin_rig"),
     log:
         "logs/twin_rig.log",
     script:
-        "../scripts/twin_rig.py"
+        STAGE_SCRIPT
 
 
 rule twin_simulate:
@@ -28,13 +28,13 @@ rule twin_simulate:
         fault_rates=TWIN["fault_rates"],
         optitrack_hz=TWIN["optitrack_hz"],
         bystander_rate=TWIN["bystander_rate"],
-        code=code("twin_simulate.py"),
+        code=code("twin_simulate"),
     log:
         "logs/twin_simulate/{session}.log",
     benchmark:
         "benchmarks/results/twin_simulate/{session}.tsv"
     script:
-        "../scripts/twin_simulate.py"
+        STAGE_SCRIPT
 
 
 
@@ -47,11 +47,11 @@ rule report_twin_flights:
         md="reports/tables/twin_vs_real.md",
         csv="reports/tables/twin_vs_real.csv",
     params:
-        code=code("report_twin_flights.py"),
+        code=code("report_twin_flights"),
     log:
         "logs/report_twin_flights.log",
     script:
-        "../scripts/report_twin_flights.py"
+        STAGE_SCRIPT
 
 
 rule twin_calibration:
@@ -68,11 +68,11 @@ rule twin_calibration:
         seed=config["seed"],
         folder=lambda wc, output: Path(output[0]).parents[1],
         views=TWIN["calibration_views"],
-        code=code("twin_calibration.py"),
+        code=code("twin_calibration"),
     log:
         "logs/twin_calibration.log",
     script:
-        "../scripts/twin_calibration.py"
+        STAGE_SCRIPT
 
 
 rule twin_camera:
@@ -89,13 +89,13 @@ rule twin_camera:
         session="{session}",
         cam="{cam}",
         jpeg_quality=TWIN["jpeg_quality"],
-        code=code("twin_camera.py"),
+        code=code("twin_camera"),
     log:
         "logs/twin_camera/{session}_{cam}.log",
     benchmark:
         "benchmarks/results/twin_camera/{session}_{cam}.tsv"
     script:
-        "../scripts/twin_camera.py"
+        STAGE_SCRIPT
 
 
 rule twin_openpose:
@@ -108,11 +108,11 @@ rule twin_openpose:
         seed=config["seed"],
         session="{session}",
         cam="{cam}",
-        code=code("twin_openpose.py"),
+        code=code("twin_openpose"),
     log:
         "logs/twin_openpose/{session}_{cam}.log",
     script:
-        "../scripts/twin_openpose.py"
+        STAGE_SCRIPT
 
 
 rule twin_optitrack:
@@ -124,8 +124,8 @@ rule twin_optitrack:
     params:
         seed=config["seed"],
         session="{session}",
-        code=code("twin_optitrack.py"),
+        code=code("twin_optitrack"),
     log:
         "logs/twin_optitrack/{session}.log",
     script:
-        "../scripts/twin_optitrack.py"
+        STAGE_SCRIPT

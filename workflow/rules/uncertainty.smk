@@ -17,7 +17,7 @@ rule ensemble_member:
         member=lambda wc: int(wc.member),
         settings=TRAIN_SETTINGS,
         seed=config["seed"],
-        code=code("ensemble_member.py"),
+        code=code("ensemble_member"),
     wildcard_constraints:
         member=r"\d+",
     log:
@@ -27,7 +27,7 @@ rule ensemble_member:
     resources:
         gpu=1 if config["device"] == "cuda" else 0,
     script:
-        "../scripts/ensemble_member.py"
+        STAGE_SCRIPT
 
 
 rule fit_uncertainty:
@@ -47,13 +47,13 @@ rule fit_uncertainty:
     params:
         settings=UNCERTAINTY,
         seed=config["seed"],
-        code=code("fit_uncertainty.py"),
+        code=code("fit_uncertainty"),
     log:
         "logs/fit_uncertainty.log",
     benchmark:
         "benchmarks/results/fit_uncertainty.tsv"
     script:
-        "../scripts/fit_uncertainty.py"
+        STAGE_SCRIPT
 
 
 rule report_uncertainty:
@@ -90,8 +90,8 @@ rule report_uncertainty:
     params:
         coverage=UNCERTAINTY["coverage"],
         seed=config["seed"],
-        code=code("report_uncertainty.py"),
+        code=code("report_uncertainty"),
     log:
         "logs/report_uncertainty.log",
     script:
-        "../scripts/report_uncertainty.py"
+        STAGE_SCRIPT

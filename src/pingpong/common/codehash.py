@@ -1,4 +1,5 @@
-"""The code hash of a stage: its script plus every pingpong module it imports, transitively.
+"""The code hash of a stage: the rules' script, the rule's entry and every pingpong module they import,
+transitively (docs/architecture.md, "Code hashes").
 
 Snakemake reruns a job when its params change but does not track imported modules, so each
 rule passes this hash in `params:`. Following the imports (rather than a hand-kept list of
@@ -9,6 +10,8 @@ import ast
 import functools
 import hashlib
 from pathlib import Path
+
+from pingpong.common.stages import STAGE_SCRIPT, entry_file
 
 PACKAGE = "pingpong"
 
@@ -48,14 +51,19 @@ def _imported_modules(path: Path, src: Path) -> set[str]:
     return out
 
 
+def stage_code_hash(rule: str, root: str = ".") -> str:
+    """The code hash of a rule: the stage script, the rule's entry module and everything they import."""
+    return code_hash(STAGE_SCRIPT, entry_file(rule, root), root=root)
+
+
 @functools.cache
-def code_hash(script: str, root: str = ".") -> str:
-    """SHA-256 over `script` and the source of every pingpong module it reaches by imports."""
+def code_files(*scripts: str, root: str = ".") -> tuple[Path, ...]:
+    """`scripts` and every pingpong module they reach by imports, sorted."""
     root_path = Path(root).resolve()
     src = root_path / "src"
     seen: dict[str, Path] = {}
-    todo = [root_path / script]
-    files = [root_path / script]
+    todo = [root_path / s for s in scripts]
+    files = list(todo)
     while todo:
         for name in _imported_modules(todo.pop(), src):
             if name in seen:
@@ -65,8 +73,14 @@ def code_hash(script: str, root: str = ".") -> str:
             if f is not None:
                 todo.append(f)
                 files.append(f)
+    return tuple(sorted(set(files)))
+
+
+def code_hash(*scripts: str, root: str = ".") -> str:
+    """SHA-256 over `scripts` and the source of every pingpong module they reach by imports."""
+    root_path = Path(root).resolve()
     h = hashlib.sha256()
-    for f in sorted(set(files)):
+    for f in code_files(*scripts, root=root):
         h.update(str(f.relative_to(root_path)).encode())
         h.update(f.read_bytes())
     return h.hexdigest()[:16]

@@ -1,19 +1,23 @@
-"""The bridge between a workflow script and the package: one entry for Snakemake and the shell.
+"""The bridge between the workflow and the package: every rule runs `workflow/scripts/stage.py`, which
+calls `run_rule`, which runs the rule's entry `pingpong.stages.<rule>.main(ctx)`.
 
-Under Snakemake a script calls `run_stage(main, snakemake)`; from a shell the same script runs as
-`python workflow/scripts/x.py --input name=path --output name=path --params params.json`.
+Under Snakemake the rule's name comes from the job; from a shell the same script runs as
+`python workflow/scripts/stage.py RULE --input name=path --output name=path --params params.json`.
 Either way `main(ctx)` gets plain paths and params, and its log goes to the rule's log file.
 """
 
 import argparse
 import contextlib
+import importlib
 import json
 import logging
 import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+import pingpong
 from pingpong.common.artifacts import Provenance
+from pingpong.common.stages import entry_module
 
 
 class Named(dict):
@@ -60,8 +64,9 @@ def _from_snakemake(smk) -> StageContext:
     )
 
 
-def _from_argv(stage: str, argv) -> StageContext:
-    ap = argparse.ArgumentParser(description=f"run the '{stage}' stage outside Snakemake")
+def _from_argv(argv) -> StageContext:
+    ap = argparse.ArgumentParser(description="run one rule's stage outside Snakemake")
+    ap.add_argument("rule", help="the rule's name, e.g. detection")
     ap.add_argument("--input", nargs="*", default=[], metavar="NAME=PATH")
     ap.add_argument("--output", nargs="*", default=[], metavar="NAME=PATH")
     ap.add_argument("--params", help="JSON file with the rule's params")
@@ -69,7 +74,7 @@ def _from_argv(stage: str, argv) -> StageContext:
     a = ap.parse_args(argv)
     pairs = lambda items: Named(kv.split("=", 1) for kv in items)  # noqa: E731
     params = json.loads(Path(a.params).read_text()) if a.params else {}
-    return StageContext(stage, pairs(a.input), pairs(a.output), params, Path(a.log) if a.log else None)
+    return StageContext(a.rule, pairs(a.input), pairs(a.output), params, Path(a.log) if a.log else None)
 
 
 def pin_threads(threads: int) -> None:
@@ -87,9 +92,22 @@ def pin_threads(threads: int) -> None:
         torch.set_num_threads(max(1, int(threads)))
 
 
-def run_stage(main, smk=None, stage: str | None = None) -> None:
-    """Run `main(ctx)` with its logging (and stderr, where tqdm writes) going to the log file."""
-    ctx = _from_snakemake(smk) if smk is not None else _from_argv(stage or main.__module__, sys.argv[1:])
+def check_checkout(root: Path) -> None:
+    """The imported `pingpong` must be the checkout's own `src/`: the code hash is computed from there."""
+    imported = Path(pingpong.__file__).resolve().parent
+    expected = (root / "src" / "pingpong").resolve()
+    if imported != expected:
+        raise ImportError(f"this job imports pingpong from {imported}, but the workflow's code hash is "
+                          f"computed from {expected}: install this checkout (`pip install -e .`) or put "
+                          f"its src/ on PYTHONPATH")
+
+
+def run_rule(smk=None) -> None:
+    """Run the rule's entry `main(ctx)` with its logging (and stderr, where tqdm writes) to the log file."""
+    ctx = _from_snakemake(smk) if smk is not None else _from_argv(sys.argv[1:])
+    script = Path(smk.scriptdir) if smk is not None else Path(sys.argv[0]).resolve().parent
+    check_checkout(script.parents[1])  # workflow/scripts/ -> the checkout's root
+    main = importlib.import_module(entry_module(ctx.stage)).main
     pin_threads(getattr(smk, "threads", 1))
     with contextlib.ExitStack() as stack:
         if ctx.log is not None:

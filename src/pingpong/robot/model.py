@@ -12,9 +12,6 @@ import numpy as np
 import pinocchio as pin
 import yaml
 
-ROBOT_DIR = Path(__file__).resolve().parents[3] / "config" / "robot"
-URDF_PATH = ROBOT_DIR / "iiwa14_ridgeback.urdf"
-LIMITS_PATH = ROBOT_DIR / "limits.yaml"
 PADDLE_RADIUS = 0.08  # m
 N_BASE = 2  # the first two joints are the base's
 
@@ -32,9 +29,10 @@ class Robot:
     a_max: np.ndarray  # (9,) m/s^2 / rad/s^2
     tau_max: np.ndarray  # (7,) Nm, arm joints only (the base's forces are not modelled)
     q_home: np.ndarray  # (9,) ready posture
+    urdf_path: str  # the URDF it was built from (the scene's visual shapes are read from it)
 
 
-def read_limits(path: Path = LIMITS_PATH) -> dict:
+def read_limits(path: Path) -> dict:
     """limits.yaml as arrays: names, q_min, q_max, v_max, a_max (9,), tau_max (7,), home (9,)."""
     doc = yaml.safe_load(Path(path).read_text())
     joints = doc["joints"]
@@ -49,8 +47,10 @@ def read_limits(path: Path = LIMITS_PATH) -> dict:
     }
 
 
-def load_robot(urdf_path: Path = URDF_PATH, limits_path: Path = LIMITS_PATH) -> Robot:
-    """Build the Pinocchio model from the URDF and attach the limits of limits.yaml (joint order checked)."""
+def load_robot(urdf_path: Path, limits_path: Path) -> Robot:
+    """Build the Pinocchio model from the URDF and attach the limits of limits.yaml (joint order checked).
+
+    The files come in through the rule's `input:` (config/robot/), so Snakemake reruns on their edits."""
     model = pin.buildModelFromUrdf(str(urdf_path))
     limits = read_limits(limits_path)
     names = tuple(model.names[1:])
@@ -58,7 +58,7 @@ def load_robot(urdf_path: Path = URDF_PATH, limits_path: Path = LIMITS_PATH) -> 
         raise ValueError(f"{limits_path}: joints {limits['names']} do not match the URDF's {names}")
     return Robot(model, model.createData(), model.getFrameId("paddle"), model.getFrameId("flange"), names,
                  limits["q_min"], limits["q_max"], limits["v_max"], limits["a_max"], limits["tau_max"],
-                 limits["home"])
+                 limits["home"], str(urdf_path))
 
 
 def frame_pose(robot: Robot, q: np.ndarray, frame: int | None = None) -> tuple[np.ndarray, np.ndarray]:

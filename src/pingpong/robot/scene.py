@@ -53,7 +53,7 @@ from pingpong.frames import (
 from pingpong.io.mcap_io import SceneWriter
 from pingpong.robot.evaluate import Controller, Prediction, SimSettings, sim_settings, simulate_hit
 from pingpong.robot.flights import prediction_series
-from pingpong.robot.model import PADDLE_RADIUS, URDF_PATH, Robot
+from pingpong.robot.model import PADDLE_RADIUS, Robot
 
 FRAME_ID = "table"
 TOPICS = ("/table", "/ball", "/prediction", "/robot", "/opponent", "/tf")
@@ -209,9 +209,9 @@ def check_against_sim(scene: SceneEpisode, sim: pd.DataFrame, path) -> None:
 
 # ---------------------------------------------------------------- the robot's geometry
 
-def robot_visuals(robot: Robot, urdf_path=URDF_PATH) -> pin.GeometryModel:
+def robot_visuals(robot: Robot) -> pin.GeometryModel:
     """The URDF's visual shapes (the Ridgeback's box, the paddle's disc) on the robot's model."""
-    return pin.buildGeomFromUrdf(robot.model, str(urdf_path), pin.GeometryType.VISUAL)
+    return pin.buildGeomFromUrdf(robot.model, robot.urdf_path, pin.GeometryType.VISUAL)
 
 
 def robot_pose(robot: Robot, visuals: pin.GeometryModel, q: np.ndarray) -> dict:

@@ -1,7 +1,6 @@
 """Rule twin_simulate: one session's ball flights, shots, events, people and paddles (ground truth)."""
 
 from pingpong.common.artifacts import write_table
-from pingpong.common.script import run_stage
 from pingpong.common.seeding import rng_for
 from pingpong.twin import truth
 from pingpong.twin.session import FaultRates, simulate_session
@@ -17,6 +16,3 @@ def main(ctx):
                "paddles": truth.PADDLES}
     for name, schema in schemas.items():
         write_table(getattr(session, name), ctx.output[name], schema, prov)
-
-
-run_stage(main, globals().get("snakemake"), "twin_simulate")

@@ -1,7 +1,6 @@
 """Rule filtering: ball events found on the raw 3D ball, then ball (between events) and pose low-passed."""
 
 from pingpong.common.artifacts import read_table, write_table
-from pingpong.common.script import run_stage
 from pingpong.curation.segments import EVENTS, filter_session
 from pingpong.perception.paddle import PADDLE
 from pingpong.perception.triangulation import BALL3D, POSE3D
@@ -17,6 +16,3 @@ def main(ctx):
     write_table(ball, ctx.output.ball, BALL3D, prov)
     write_table(pose, ctx.output.pose, POSE3D, prov)
     write_table(events, ctx.output.events, EVENTS, prov)
-
-
-run_stage(main, globals().get("snakemake"), "filtering")

@@ -1,7 +1,6 @@
 """Rule segments: one session's candidate hits (the paper's segments), kept or excluded with a reason."""
 
 from pingpong.common.artifacts import read_table, write_table
-from pingpong.common.script import run_stage
 from pingpong.curation.segments import EVENTS, SEGMENTS, curate_segments, find_segments
 from pingpong.perception.paddle import PADDLE
 from pingpong.perception.triangulation import BALL3D, POSE3D
@@ -13,6 +12,3 @@ def main(ctx):
     candidates = find_segments(ball, read_table(ctx.input.events, EVENTS), p["session"])
     curated = curate_segments(candidates, ball, pose, read_table(ctx.input.paddle, PADDLE), **p["rules"])
     write_table(curated, ctx.output.segments, SEGMENTS, ctx.provenance())
-
-
-run_stage(main, globals().get("snakemake"), "segments")

@@ -3,7 +3,6 @@
 import numpy as np
 
 from pingpong.common.artifacts import write_table
-from pingpong.common.script import run_stage
 from pingpong.io.mcap_io import read_camera_times
 from pingpong.perception.calibration import load_cameras
 from pingpong.perception.paddle import PADDLE, paddle_table, read_optitrack_poses
@@ -17,6 +16,3 @@ def main(ctx):
     table = paddle_table(poses, p["bodies"], np.array(calibration["T_table_from_optitrack"]), frame_times,
                          p["max_gap_s"])
     write_table(table, ctx.output.paddle, PADDLE, ctx.provenance())
-
-
-run_stage(main, globals().get("snakemake"), "paddle")

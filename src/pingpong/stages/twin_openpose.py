@@ -6,7 +6,6 @@ from tqdm import tqdm
 from pingpong.common.artifacts import read_json, read_table
 from pingpong.common.atomic import atomic_dir
 from pingpong.common.camera import Camera
-from pingpong.common.script import run_stage
 from pingpong.common.seeding import rng_for
 from pingpong.io.openpose_json import format_keypoints_json, keypoints_filename
 from pingpong.twin import truth
@@ -27,6 +26,3 @@ def main(ctx):
             present = [b[frame] for b in bodies if not np.isnan(b[frame]).all()]
             keypoints = simulate_openpose(camera, present, rng)
             (folder / keypoints_filename(basename, frame)).write_text(format_keypoints_json(keypoints))
-
-
-run_stage(main, globals().get("snakemake"), "twin_openpose")

@@ -4,7 +4,6 @@ import numpy as np
 import pandas as pd
 
 from pingpong.common.artifacts import read_json, write_json
-from pingpong.common.script import run_stage
 from pingpong.learning.cv import CV_RESULT, SELECTION
 from pingpong.learning.grid import grid_summary, select_best
 from pingpong.reports.tables import write_report_table
@@ -27,6 +26,3 @@ def main(ctx):
     config = configs[configs["config_id"] == best].iloc[0].to_dict()
     write_json({"config": config, "epochs": max(epochs, 1)}, ctx.output.selection, SELECTION,
                ctx.provenance())
-
-
-run_stage(main, globals().get("snakemake"), "select_model")

@@ -6,7 +6,6 @@ import logging
 import numpy as np
 
 from pingpong.common.artifacts import read_table, write_json, write_table
-from pingpong.common.script import run_stage
 from pingpong.curation.dataset import DATASET
 from pingpong.learning.cv import PREDICTIONS
 from pingpong.perception.triangulation import BALL3D
@@ -28,7 +27,7 @@ def main(ctx):
     balls = {s: read_table(f, BALL3D, columns=["time_ns", "x", "y", "z"])
              for s, f in zip(p["sessions"], i.balls, strict=True)}
     settings = sim_settings(cfg, dataset.loc[dataset["split"] == "train", "strike_z"].median())
-    robot = load_robot()
+    robot = load_robot(ctx.input.urdf, ctx.input.limits)
     parts = {}
     for split in ("calibration", "test"):
         hits = dataset[dataset["split"] == split].reset_index(drop=True)
@@ -46,6 +45,3 @@ def main(ctx):
               "anticipation_z_m": settings.anticipation_z, "n_calibration_hits": len(parts["calibration"][0]),
               "sweep": [] if sweep is None else sweep.replace({np.nan: None}).to_dict("records")}
     write_json(choice, ctx.output.choice, CHOICE, prov)
-
-
-run_stage(main, globals().get("snakemake"), "simulate_robot")

@@ -3,7 +3,6 @@
 import numpy as np
 
 from pingpong.common.artifacts import read_json, read_table
-from pingpong.common.script import run_stage
 from pingpong.common.seeding import rng_for
 from pingpong.twin import truth
 from pingpong.twin.optitrack_sim import write_optitrack_session
@@ -20,6 +19,3 @@ def main(ctx):
                          rows[list(truth.ROT_COLUMNS)].to_numpy().reshape(-1, 3, 3))
     write_optitrack_session(ctx.output.mcap, times, poses, (np.array(rig["R"]), np.array(rig["t"])),
                             rng_for(p["seed"], "twin_optitrack", p["session"]))
-
-
-run_stage(main, globals().get("snakemake"), "twin_optitrack")

@@ -1,7 +1,6 @@
 """Rule pose2d: both players' 8 model joints in one camera's OpenPose output, assigned to their sides."""
 
 from pingpong.common.artifacts import write_table
-from pingpong.common.script import run_stage
 from pingpong.io.mcap_io import read_camera_times
 from pingpong.perception.calibration import load_cameras
 from pingpong.perception.pose2d import POSE2D, pose2d_table
@@ -14,6 +13,3 @@ def main(ctx):
     times = read_camera_times(ctx.input.mcap, strict=p["strict"])
     table = pose2d_table(ctx.input.openpose, camera, times, p["min_confidence"])
     write_table(table, ctx.output.pose2d, POSE2D, ctx.provenance())
-
-
-run_stage(main, globals().get("snakemake"), "pose2d")

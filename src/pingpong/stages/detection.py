@@ -5,7 +5,6 @@ import logging
 from tqdm import tqdm
 
 from pingpong.common.artifacts import write_table
-from pingpong.common.script import run_stage
 from pingpong.io.mcap_io import read_camera_stream
 from pingpong.perception.detection import DETECTIONS, BallDetector, detect_stream
 
@@ -17,6 +16,3 @@ def main(ctx):
     write_table(table, ctx.output.detections, DETECTIONS, ctx.provenance())
     logging.info("%s: ball found in %d of %d frames, %d frames did not decode", ctx.input.mcap,
                  table["detected"].sum(), len(table), (~table["decode_ok"]).sum())
-
-
-run_stage(main, globals().get("snakemake"), "detection")

@@ -1,7 +1,6 @@
 """Rule report_twin_flights: the twin's ball flights beside the real MPI ball-gun flights."""
 
 from pingpong.common.artifacts import read_table
-from pingpong.common.script import run_stage
 from pingpong.reports.tables import write_report_table
 from pingpong.reports.twin_flights import twin_flight_stats
 from pingpong.twin import truth
@@ -25,6 +24,3 @@ def main(ctx):
     caption = CAPTION.format(real_n=len(real), twin_n=len(twin))
     write_report_table(compare_flights_table(twin, real), ctx.output.md, ctx.output.csv,
                        "Twin flights against real flights", caption)
-
-
-run_stage(main, globals().get("snakemake"), "report_twin_flights")

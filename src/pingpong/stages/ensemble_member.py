@@ -1,7 +1,6 @@
 """Rule ensemble_member: the selected configuration refit on the training part with seed + member."""
 
 from pingpong.common.artifacts import read_json, read_table
-from pingpong.common.script import run_stage
 from pingpong.curation.dataset import DATASET, dataset_arrays
 from pingpong.learning.cv import SELECTION, refit
 from pingpong.learning.models import save_net
@@ -16,6 +15,3 @@ def main(ctx):
     net = refit(X, Y, selection["config"], selection["epochs"], p["settings"], seed)
     save_net(net, {**selection["config"], "epochs": selection["epochs"], "member": p["member"], "seed": seed},
              ctx.output.model.removesuffix(".safetensors"), ctx.provenance())
-
-
-run_stage(main, globals().get("snakemake"), "ensemble_member")

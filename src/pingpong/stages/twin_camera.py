@@ -7,7 +7,6 @@ from tqdm import tqdm
 
 from pingpong.common.artifacts import read_json, read_table, write_table
 from pingpong.common.camera import Camera
-from pingpong.common.script import run_stage
 from pingpong.common.seeding import rng_for
 from pingpong.io.mcap_io import CameraStreamWriter
 from pingpong.twin import truth
@@ -33,6 +32,3 @@ def main(ctx):
             rows.append(row)
     write_table(pd.DataFrame(rows), ctx.output.ball2d, truth.BALL2D, ctx.provenance())
     logging.info("%s %s: %d frames", p["session"], p["cam"], len(rows))
-
-
-run_stage(main, globals().get("snakemake"), "twin_camera")

@@ -3,7 +3,6 @@
 import pandas as pd
 
 from pingpong.common.artifacts import read_table
-from pingpong.common.script import run_stage
 from pingpong.curation.segments import EVENTS, SEGMENTS
 from pingpong.perception.triangulation import BALL3D
 from pingpong.reports import curation_accuracy as acc
@@ -46,6 +45,3 @@ def main(ctx):
     caption = CAPTION.format(quality=int(decisions["data_quality"].sum()),
                              ok=int((decisions["expected"] == "kept").sum()))
     write_report_table(pd.DataFrame(rows), ctx.output.md, ctx.output.csv, "Curation accuracy", caption)
-
-
-run_stage(main, globals().get("snakemake"), "report_curation")

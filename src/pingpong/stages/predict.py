@@ -7,7 +7,6 @@ hits: out of fold, each predicted by the selected configuration's model that did
 import pandas as pd
 
 from pingpong.common.artifacts import read_json, read_table, write_table
-from pingpong.common.script import run_stage
 from pingpong.curation.dataset import DATASET, dataset_arrays
 from pingpong.learning.cv import BALL_ONLY, PREDICTIONS, SELECTION, prediction_table
 from pingpong.learning.models import load_net
@@ -32,6 +31,3 @@ def main(ctx):
         rows = ((dataset["split"] == "train") & (dataset["fold"] == fold)).to_numpy()
         parts.append(prediction_table(dataset[rows], predict(load_net(stem), X[rows]), "final"))
     write_table(pd.concat(parts, ignore_index=True), ctx.output.predictions, PREDICTIONS, ctx.provenance())
-
-
-run_stage(main, globals().get("snakemake"), "predict")

@@ -4,7 +4,6 @@ curation table."""
 import pandas as pd
 
 from pingpong.common.artifacts import read_table, write_table
-from pingpong.common.script import run_stage
 from pingpong.common.seeding import rng_for
 from pingpong.curation.dataset import DATASET, build_dataset
 from pingpong.curation.segments import CURATION_RULES, SEGMENTS
@@ -36,6 +35,3 @@ def main(ctx):
                              n_train=split.get("train", 0), n_cal=split.get("calibration", 0),
                              n_test=split.get("test", 0), n_folds=p["n_folds"])
     write_report_table(table, ctx.output.md, ctx.output.csv, "Curation", caption)
-
-
-run_stage(main, globals().get("snakemake"), "dataset")

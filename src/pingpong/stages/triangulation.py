@@ -3,7 +3,6 @@
 import logging
 
 from pingpong.common.artifacts import read_table, write_table
-from pingpong.common.script import run_stage
 from pingpong.perception.calibration import load_cameras
 from pingpong.perception.detection import DETECTIONS
 from pingpong.perception.pose2d import POSE2D
@@ -22,6 +21,3 @@ def main(ctx):
                         p["max_reproj_px"], p["min_views"])
     write_table(pose, ctx.output.pose3d, POSE3D, prov)
     logging.info("ball in 3D in %d of %d frames", ball["x"].notna().sum(), len(ball))
-
-
-run_stage(main, globals().get("snakemake"), "triangulation")

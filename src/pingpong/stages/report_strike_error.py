@@ -1,7 +1,6 @@
 """Rule report_strike_error: the paper's Table 1 and the error against frames before the hit."""
 
 from pingpong.common.artifacts import read_table
-from pingpong.common.script import run_stage
 from pingpong.learning.cv import PREDICTIONS
 from pingpong.reports.strike_error import error_by_frame, plot_error_vs_frames, table1, with_mean_baseline
 from pingpong.reports.tables import write_report_table
@@ -19,6 +18,3 @@ def main(ctx):
     write_report_table(table1(by_frame), o.md, o.csv, "Strike-point error (Table 1)", CAPTION)
     write_report_table(by_frame, o.frames_md, o.frames_csv, "Strike-point error at every frame", CAPTION)
     plot_error_vs_frames(by_frame, o.figure)
-
-
-run_stage(main, globals().get("snakemake"), "report_strike_error")

@@ -5,13 +5,9 @@ from pathlib import Path
 import pandas as pd
 
 from pingpong.common.atomic import write_text_atomic
-from pingpong.common.script import run_stage
 from pingpong.reports.pages import table_page
 
 
 def main(ctx):
     page = table_page(Path(ctx.input.md).read_text(), pd.read_csv(ctx.input.csv))
     write_text_atomic(ctx.output.page, page)
-
-
-run_stage(main, globals().get("snakemake"), "report_page")

@@ -1,7 +1,6 @@
 """Rule train_final: the selected configuration refit on the whole training part; a ball-only baseline."""
 
 from pingpong.common.artifacts import read_json, read_table
-from pingpong.common.script import run_stage
 from pingpong.curation.dataset import DATASET, dataset_arrays
 from pingpong.learning.cv import BALL_ONLY, SELECTION, refit
 from pingpong.learning.models import save_net
@@ -17,6 +16,3 @@ def main(ctx):
     net = refit(X, Y, selection["config"], selection["epochs"], p["settings"], p["seed"])
     save_net(net, {**selection["config"], "epochs": selection["epochs"], "ball_only": p["ball_only"]},
              ctx.output.model.removesuffix(".safetensors"), ctx.provenance())
-
-
-run_stage(main, globals().get("snakemake"), "train_final")

@@ -1,7 +1,6 @@
 """Rule twin_rig: the lab's true cameras and OptiTrack frame (ground truth, raw/twin_truth/rig.json)."""
 
 from pingpong.common.artifacts import write_json
-from pingpong.common.script import run_stage
 from pingpong.common.seeding import rng_for
 from pingpong.twin import truth
 from pingpong.twin.optitrack_sim import table_to_optitrack
@@ -16,6 +15,3 @@ def main(ctx):
     rig = {"cameras": [c.to_dict() for c in cameras],
            "optitrack_from_table": {"R": R.tolist(), "t": t.tolist()}}  # p_ot = R p_table + t
     write_json(rig, ctx.output.rig, truth.RIG, ctx.provenance())
-
-
-run_stage(main, globals().get("snakemake"), "twin_rig")

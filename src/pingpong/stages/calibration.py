@@ -1,7 +1,6 @@
 """Rule calibration: every camera's intrinsics and table-frame extrinsics, and the OptiTrack-to-table fit."""
 
 from pingpong.common.artifacts import write_json
-from pingpong.common.script import run_stage
 from pingpong.perception.calibration import CAMERAS, calibrate_camera, camera_folder_paths
 from pingpong.perception.calibration_import import read_anipose_toml, read_opencv_calibration
 from pingpong.perception.paddle import optitrack_to_table, read_optitrack_poses
@@ -20,6 +19,3 @@ def main(ctx):
     write_json({"cameras": [c.to_dict() for c in cameras], "reports": reports,
                 "T_table_from_optitrack": T.tolist(), "optitrack_fit_rms_m": rms},
                ctx.output.cameras, CAMERAS, ctx.provenance())
-
-
-run_stage(main, globals().get("snakemake"), "calibration")

@@ -1,7 +1,6 @@
 """Rule train_cv: one (configuration, fold) job of the cross-validated grid search."""
 
 from pingpong.common.artifacts import read_table, write_json
-from pingpong.common.script import run_stage
 from pingpong.curation.dataset import DATASET, dataset_arrays
 from pingpong.learning.cv import CV_RESULT, fit_fold
 from pingpong.learning.models import save_net
@@ -16,6 +15,3 @@ def main(ctx):
     prov = ctx.provenance()
     save_net(net, {**p["config"], "fold": p["fold"]}, ctx.output.model.removesuffix(".safetensors"), prov)
     write_json(result, ctx.output.result, CV_RESULT, prov)
-
-
-run_stage(main, globals().get("snakemake"), "train_cv")

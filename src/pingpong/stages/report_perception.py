@@ -4,7 +4,6 @@ import pandas as pd
 
 from pingpong.common.artifacts import read_json, read_table
 from pingpong.common.camera import Camera
-from pingpong.common.script import run_stage
 from pingpong.frames import MODEL_JOINT_IDS
 from pingpong.perception.calibration import load_cameras
 from pingpong.perception.detection import DETECTIONS
@@ -41,6 +40,3 @@ def main(ctx):
                                 MODEL_JOINT_IDS)
         rows += acc.paddle_rows(read_table(i.paddle[k], PADDLE), read_table(i.paddles[k], truth.PADDLES))
     write_report_table(pd.DataFrame(rows), ctx.output.md, ctx.output.csv, "Perception accuracy", CAPTION)
-
-
-run_stage(main, globals().get("snakemake"), "report_perception")

@@ -7,7 +7,6 @@ from dataclasses import asdict
 from pathlib import Path
 
 from pingpong.common.artifacts import read_json, read_table
-from pingpong.common.script import run_stage
 from pingpong.curation.dataset import DATASET
 from pingpong.learning.cv import PREDICTIONS
 from pingpong.perception.triangulation import BALL3D
@@ -38,7 +37,7 @@ def main(ctx):
              for s, f in zip(p["sessions"], i.balls, strict=True)}
     flights = hit_flights(hits, balls, cfg["max_flight_s"])
     labels = prediction_labels(predictions, hits)
-    robot = load_robot()
+    robot = load_robot(ctx.input.urdf, ctx.input.limits)
     visuals = robot_visuals(robot)
     outputs = {Path(path).name: path for path in ctx.output.mcaps}
     # the same provenance as the Parquet artifacts', as the MCAP metadata record 'pingpong'
@@ -63,6 +62,3 @@ def main(ctx):
     order = {(h.session, h.rally, h.hit): k for k, h in enumerate(hits.itertuples(index=False))}
     scenes.sort(key=lambda s: order[s.info["session"], s.info["rally"], s.info["hit"]])  # stable: controllers
     plot_scenes(scenes, robot, visuals, ctx.output.figure)
-
-
-run_stage(main, globals().get("snakemake"), "robot_scene")

@@ -1,7 +1,6 @@
 """Rule report_uncertainty: every estimator's metrics on the test hits side by side, and the figures."""
 
 from pingpong.common.artifacts import read_json, read_table
-from pingpong.common.script import run_stage
 from pingpong.common.seeding import rng_for
 from pingpong.reports.tables import write_report_table
 from pingpong.reports.uncertainty import (
@@ -72,6 +71,3 @@ def main(ctx):
     plot_error_vs_frames(by_frame, tables["time_to_hit"], o.error_vs_frames)
     plot_sparsification(tables, o.sparsification)
     plot_spearman_by_frame(by_frame, o.spearman_by_frame)
-
-
-run_stage(main, globals().get("snakemake"), "report_uncertainty")

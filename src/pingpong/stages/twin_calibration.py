@@ -2,7 +2,6 @@
 
 from pingpong.common.artifacts import read_json
 from pingpong.common.camera import Camera
-from pingpong.common.script import run_stage
 from pingpong.common.seeding import rng_for
 from pingpong.twin import truth
 from pingpong.twin.calibration_images import write_calibration_images
@@ -14,6 +13,3 @@ def main(ctx):
     cameras = [Camera.from_dict(c) for c in read_json(ctx.input.rig, truth.RIG)["cameras"]]
     write_calibration_images(str(p["folder"]), cameras, make_lab(rng_for(p["seed"], "twin_lab")),
                              rng_for(p["seed"], "twin_calibration"), p["views"])
-
-
-run_stage(main, globals().get("snakemake"), "twin_calibration")

@@ -2,7 +2,6 @@
 beside the accelerations derived from the torque limits (the paper's Table 6)."""
 
 from pingpong.common.artifacts import read_json, read_table
-from pingpong.common.script import run_stage
 from pingpong.common.seeding import rng_for
 from pingpong.reports.robot import limits_table, robot_table
 from pingpong.reports.tables import write_report_table
@@ -46,10 +45,7 @@ def main(ctx):
     table = robot_table(sims, rng_for(p["seed"], "report_robot"), p["n_bootstrap"])
     caption = CAPTION.format(n_boot=p["n_bootstrap"], controllers="; ".join(describe(c) for c in choices))
     write_report_table(table, o.md, o.csv, "Simulated robot (Tables 2-4)", caption)
-    robot = load_robot()
+    robot = load_robot(ctx.input.urdf, ctx.input.limits)
     derived = worst_case_accelerations(robot, rng_for(p["seed"], "robot_limits"), p["limit_samples"])
     write_report_table(limits_table(robot, derived), o.limits_md, o.limits_csv,
                        "Robot joint limits (Table 6)", LIMITS_CAPTION.format(n=p["limit_samples"]))
-
-
-run_stage(main, globals().get("snakemake"), "report_robot")

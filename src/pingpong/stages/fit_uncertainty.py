@@ -4,7 +4,6 @@ calibration and test hits; one table per estimator, the fitted estimators beside
 import numpy as np
 
 from pingpong.common.artifacts import read_table, write_json, write_table
-from pingpong.common.script import run_stage
 from pingpong.common.seeding import rng_for
 from pingpong.curation.dataset import DATASET, dataset_arrays
 from pingpong.learning.cv import PREDICTIONS
@@ -48,6 +47,3 @@ def main(ctx):
     save_knn(models["knn"], ctx.output.knn.removesuffix(".safetensors"), prov)
     save_heads(models["quantile_heads"], ctx.output.heads.removesuffix(".safetensors"), prov)
     save_error_head(models["error_head"], ctx.output.error_head.removesuffix(".safetensors"), prov)
-
-
-run_stage(main, globals().get("snakemake"), "fit_uncertainty")
