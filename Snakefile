@@ -11,12 +11,13 @@ min_version("9.0")
 sys.path.insert(0, str(Path(workflow.basedir) / "src"))
 
 from pingpong.common.config import validate_config
+from pingpong.uncertainty.tables import ESTIMATORS
 
 
 configfile: "config/config.yaml"
 
 
-validate_config(config, Path(workflow.basedir) / "config/schema.yaml")
+validate_config(config, Path(workflow.basedir) / "config/schema.yaml", enums={"robot.estimator": [*ESTIMATORS, None]})
 
 
 include: "workflow/rules/common.smk"

@@ -124,4 +124,24 @@ def test_the_workflow_refuses_a_rule_with_another_rules_hash(tmp_path):
     rules.write_text(rules.read_text().replace('code=code("detection")', 'code=code("pose2d")', 1))
     proc = snakemake(root, "-n", configfile="config/config.yaml", check=False)
     assert proc.returncode != 0
-    assert "rule detection: params.code must be code('detection')" in proc.stdout + proc.stderr
+    assert "detection (a rule) must pass code('detection') as params.code" in proc.stdout + proc.stderr
+
+
+def test_registered_names_are_the_config_enum():
+    from pingpong.uncertainty.tables import ESTIMATORS
+
+    enums = {"robot.estimator": [*ESTIMATORS, None]}
+    assert validate_config({"robot": {"estimator": "cqr"}}, SCHEMA, enums)["robot"]["estimator"] == "cqr"
+    with pytest.raises(ConfigError, match="config key 'robot.estimator': 'nope' is not one of"):
+        validate_config({"robot": {"estimator": "nope"}}, SCHEMA, enums)
+
+
+def test_the_rules_conda_environment_lists_the_projects_requirements():
+    import tomllib
+
+    import yaml
+
+    env = yaml.safe_load((ROOT / "workflow/envs/pingpong.yaml").read_text())
+    pip = next(d["pip"] for d in env["dependencies"] if isinstance(d, dict))
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    assert pip == project["dependencies"] and "python=3.11" in env["dependencies"]

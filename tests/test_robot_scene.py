@@ -14,7 +14,8 @@ from scipy.spatial.transform import Rotation
 from workflow_util import ROBOT_LIMITS, ROBOT_URDF
 
 from pingpong.frames import FRAME_NS, N_INPUT, STRIKE_Y
-from pingpong.robot.evaluate import Controller, Prediction, SimSettings, simulate_hit
+from pingpong.robot.controllers import Controller
+from pingpong.robot.evaluate import Prediction, SimSettings, simulate_hit
 from pingpong.robot.flights import hit_flight
 from pingpong.robot.model import PADDLE_RADIUS, frame_pose, load_robot
 from pingpong.robot.scene import (

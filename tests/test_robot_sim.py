@@ -12,9 +12,9 @@ from workflow_util import ROBOT_LIMITS, ROBOT_URDF
 
 from pingpong.frames import STRIKE_Y
 from pingpong.reports.robot import bootstrap_hit_difference, mcnemar_exact, robot_table
+from pingpong.robot.controllers import CONTROLLERS, Controller, Tuning, alpha_grid, controller_names
 from pingpong.robot.episode import EpisodeParams
 from pingpong.robot.evaluate import (
-    Controller,
     Prediction,
     SimSettings,
     confidence_ramp,
@@ -23,7 +23,7 @@ from pingpong.robot.evaluate import (
 )
 from pingpong.robot.flights import hit_flight
 from pingpong.robot.model import N_BASE, load_robot, worst_case_accelerations
-from pingpong.robot.sweep import alpha_grid, best_cell, sweep
+from pingpong.robot.sweep import best_cell, choose_controller, sweep
 
 ROBOT = load_robot(ROBOT_URDF, ROBOT_LIMITS)
 FRAMES = np.arange(-30, 0)
@@ -117,8 +117,8 @@ def test_sweep_picks_the_alphas_that_hit_the_far_goals():
     flights = [straight_flight(x, z, 0.45 if abs(x) > 0.5 else 0.7) for x, z in goals]
     hits = pd.DataFrame({"session": "s", "rally": 0, "hit": range(3), "region": "x", "strike_x": 0.0,
                          "strike_z": 0.0})
-    chosen, table = sweep(ROBOT, hits, flights, [perfect(x) for x, _ in goals], alpha_grid("u", [0.0, 1.0]),
-                          SimSettings())
+    candidates = alpha_grid("u", Tuning([0.0, 1.0], []))
+    chosen, table = sweep(ROBOT, hits, flights, [perfect(x) for x, _ in goals], candidates, SimSettings())
     assert len(table) == 4 and table["hits"].max() == 3
     assert table.loc[(table["alpha1"] == 0) & (table["alpha2"] == 0), "hits"].item() == 1  # servo: slow only
     row = table[(table["alpha1"] == chosen.alpha1) & (table["alpha2"] == chosen.alpha2)].iloc[0]
@@ -178,3 +178,14 @@ def test_derived_accelerations_at_the_upright_arm_match_a_hand_computation():
     sampled = worst_case_accelerations(ROBOT, np.random.default_rng(1), n_samples=200)
     assert np.all(sampled["coupled_min"] > 0)
     assert np.all(ROBOT.a_max[N_BASE:] < sampled["coupled_min"])
+
+
+def test_controllers_come_from_the_registry():
+    assert controller_names(with_uncertainty=True) == list(CONTROLLERS)
+    assert "confidence_scaled" in CONTROLLERS and "confidence_scaled" not in controller_names(False)
+    assert Controller.from_choice(Controller("c", 1.0, 0.5, confidence=(0.1, 0.2)).to_choice()) == \
+        Controller("c", 1.0, 0.5, confidence=(0.1, 0.2))
+    fixed, table = choose_controller("anticipatory", ROBOT, None, [], [], SimSettings(), [0.5], [0.5])
+    assert fixed == Controller("anticipatory", 1.0, 1.0) and table is None
+    with pytest.raises(ValueError, match="unknown controller 'nope'; expected one of"):
+        choose_controller("nope", ROBOT, None, [], [], SimSettings(), [0.5], [0.5])

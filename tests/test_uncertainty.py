@@ -1,6 +1,7 @@
 """Uncertainty estimators and metrics: conformal coverage within its finite-sample bounds on synthetic
 exchangeable data, rank metrics against hand-computed cases, and the estimators wired on a toy dataset."""
 
+import json
 import math
 
 import numpy as np
@@ -9,6 +10,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from pingpong.common.artifacts import Provenance
 from pingpong.learning.models import FRAMES_BEFORE_HIT
 from pingpong.uncertainty.conformal import (
     conformal_quantile,
@@ -17,9 +19,17 @@ from pingpong.uncertainty.conformal import (
     normalised_scores,
 )
 from pingpong.uncertainty.features import frame_features
+from pingpong.uncertainty.fit import (
+    estimator_tables,
+    fit_estimators,
+    fitted_record,
+    frame_rows,
+    restore_estimators,
+)
 from pingpong.uncertainty.knn import fit_knn, predict_knn
 from pingpong.uncertainty.metrics import ause, interval_metrics, sparsification, spearman, within_frames
 from pingpong.uncertainty.quantile_heads import fit_quantile_heads, predict_quantiles
+from pingpong.uncertainty.registry import REGISTRY, Band, Estimator, Hits, UncertaintySettings, register
 from pingpong.uncertainty.tables import ESTIMATORS
 from pingpong.uncertainty.time_to_hit import fit_trend, trend
 
@@ -190,12 +200,14 @@ def test_knn_time_trend_and_features():
     assert np.allclose(F[30 + j, 39:78], 100 * (X[1, 39 - f] - X[1, 38 - f])) and F[30 + j, 78] == f
 
 
-def test_fit_estimators_on_a_toy_dataset():
-    from pingpong.uncertainty.estimators import fit_estimators, frame_rows
+SETTINGS = UncertaintySettings(ensemble_size=3, coverage=0.9, knn_k=5, quantile_hidden=32, quantile_epochs=20,
+                               error_head_hidden=16, error_head_epochs=2)
 
-    rng = np.random.default_rng(7)
-    n = 60
-    split = np.array(["train"] * 30 + ["calibration"] * 15 + ["test"] * 15)
+
+def toy_hits(n=60, seed=7) -> Hits:
+    """n hits (half train, a quarter each calibration and test) with random inputs and predictions."""
+    rng = np.random.default_rng(seed)
+    split = np.array(["train"] * (n // 2) + ["calibration"] * (n // 4) + ["test"] * (n - n // 2 - n // 4))
     dataset = pd.DataFrame({"session": "s00", "rally": np.arange(n), "hit": np.arange(n), "split": split,
                             "strike_x": rng.uniform(-0.7, 0.7, n)})
     X = rng.normal(size=(n, 40, 39))
@@ -204,14 +216,64 @@ def test_fit_estimators_on_a_toy_dataset():
         "hit": np.repeat(np.arange(n), 30), "frames_before_hit": np.tile(FRAMES_BEFORE_HIT, n),
         "a1": 0.0, "a2": 0.0, "b": 0.0, "strike_x_pred": rng.normal(0, 0.3, 30 * n)}))
     ensemble = rows["strike_x_pred"].to_numpy() + rng.normal(0, 0.05, size=(3, len(rows)))
-    tables, fitted, models = fit_estimators(rows, frame_features(X, FRAMES_BEFORE_HIT), X, ensemble, 0.9, 5,
-                                            {"epochs": 20}, {"epochs": 2}, rng)
-    assert set(tables) == set(ESTIMATORS) and models["knn"].k == 5
-    assert -1 <= fitted["diagnostics"]["member_error_spearman_within_frame"] <= 1
+    return Hits(rows, frame_features(X, FRAMES_BEFORE_HIT), X, ensemble)
+
+
+def test_fit_estimators_on_a_toy_dataset():
+    hits = toy_hits()
+    fitted = fit_estimators(hits, SETTINGS, np.random.default_rng(7))
+    tables, record = estimator_tables(hits, fitted), fitted_record(hits, fitted, SETTINGS.coverage)
+    assert list(tables) == list(ESTIMATORS) and fitted["knn"].model.k == 5 and record["knn"] == {"k": 5}
+    assert -1 <= record["diagnostics"]["member_error_spearman_within_frame"] <= 1
     for name, table in tables.items():
         assert len(table) == 30 * 30 and set(table["split"]) == {"calibration", "test"}
         assert (table["uncertainty"] >= 0).all(), name
         interval = table["lower"].notna()
         assert (table.loc[interval, "lower"] <= table.loc[interval, "upper"]).all()
         assert interval.all() == (name not in ("ensemble", "knn", "time_to_hit", "error_head"))
-    assert np.isfinite(fitted["conformal"]["quantile"])  # 15 calibration hits >= 9
+    assert np.isfinite(record["conformal"]["quantile"])  # 15 calibration hits >= 9
+
+
+def test_estimators_restored_from_their_artifacts_apply_alike(tmp_path):
+    hits = toy_hits()
+    fitted = fit_estimators(hits, SETTINGS, np.random.default_rng(3))
+    stems = {}
+    for estimator in fitted.values():
+        if estimator.model_file:
+            stems[estimator.model_file] = str(tmp_path / estimator.model_file)
+            estimator.save_model(stems[estimator.model_file], Provenance.of("test"))
+    record = json.loads(json.dumps(fitted_record(hits, fitted, SETTINGS.coverage)))  # through JSON
+    restored = restore_estimators(record, SETTINGS, stems)
+    assert list(restored) == list(fitted)
+    for name, table in estimator_tables(hits, restored).items():
+        pd.testing.assert_frame_equal(table, estimator_tables(hits, fitted)[name], check_exact=False,
+                                      rtol=1e-6, obj=name)
+
+
+class HalfTheError(Estimator):
+    """A toy estimator beyond the registered ones: half the ensemble spread plus the k-NN error."""
+
+    name = "toy_half"
+
+    def fit(self, hits, fitted, rng):
+        self.parts = fitted["ensemble"], fitted["knn"]
+
+    def apply(self, hits):
+        return Band(0.5 * sum(p.apply(hits).uncertainty for p in self.parts))
+
+
+def test_a_registered_toy_estimator_reaches_the_uncertainty_table():
+    from pingpong.reports.uncertainty import summary_table
+
+    register(HalfTheError)
+    try:
+        hits = toy_hits()
+        fitted = fit_estimators(hits, SETTINGS, np.random.default_rng(5))
+        summary = summary_table(estimator_tables(hits, fitted))
+    finally:
+        REGISTRY.pop("toy_half")
+    row = summary.set_index("estimator").loc["toy_half"]
+    assert not row["paper"] and np.isfinite(row["spearman_within_frame"])
+    assert list(summary["estimator"]) == [*ESTIMATORS, "toy_half"]
+    with pytest.raises(ValueError, match="'ensemble' is already registered"):
+        register(type("Again", (Estimator,), {"name": "ensemble"}))

@@ -6,6 +6,7 @@ from pingpong.common.stages import STAGE_SCRIPT as _SCRIPT
 from pingpong.learning.grid import expand_grid
 
 STAGE_SCRIPT = f"../../{_SCRIPT}"  # every rule's script, relative to workflow/rules/
+CONDA_ENV = "../envs/pingpong.yaml"  # every rule's software, for --sdm conda (make installs it into .venv)
 
 
 def code(rule):
@@ -96,13 +97,13 @@ def report_pages():
 
 
 def check_stage_rules(rules, root):
-    """Every rule but `all` runs the stage script with the code hash of its own entry: a rule that names
-    another rule's hash, or none, would rerun on the wrong edits."""
+    """Each of the workflow's rules but `all` must run the stage script with the code hash of its own
+    entry; one that passed another's hash, or none, would rerun on the wrong edits."""
     for r in rules:
         if r.name == "all":
             continue
         if not (r.script or "").endswith(_SCRIPT.rsplit("/", 1)[1]):
-            raise WorkflowError(f"rule {r.name}: script must be {_SCRIPT}, not {r.script}")
+            raise WorkflowError(f"{r.name} (a rule) must run the script {_SCRIPT}, not {r.script}")
         if r.params.get("code") != stage_code_hash(r.name, root):
-            raise WorkflowError(f"rule {r.name}: params.code must be code('{r.name}'), the hash of its entry "
-                                f"src/pingpong/stages/{r.name}.py")
+            raise WorkflowError(f"{r.name} (a rule) must pass code('{r.name}') as params.code, the hash of "
+                                f"its entry src/pingpong/stages/{r.name}.py")

@@ -17,6 +17,8 @@ rule filtering:
         code=code("filtering"),
     log:
         "logs/filtering/{session}.log",
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT
 
@@ -35,6 +37,8 @@ rule segments:
         code=code("segments"),
     log:
         "logs/segments/{session}.log",
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT
 
@@ -60,6 +64,8 @@ rule dataset:
         code=code("dataset"),
     log:
         "logs/dataset.log",
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT
 
@@ -81,5 +87,7 @@ rule report_curation:
         code=code("report_curation"),
     log:
         "logs/report_curation.log",
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT

@@ -26,6 +26,8 @@ rule train_cv:
         "benchmarks/results/train_cv/{config_id}_fold{fold}.tsv"
     resources:
         gpu=1 if config["device"] == "cuda" else 0,
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT
 
@@ -42,6 +44,8 @@ rule select_model:
         code=code("select_model"),
     log:
         "logs/select_model.log",
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT
 
@@ -66,6 +70,8 @@ rule train_final:
         "logs/train_final/{variant}.log",
     benchmark:
         "benchmarks/results/train_final/{variant}.tsv"
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT
 
@@ -83,6 +89,8 @@ rule predict:
         code=code("predict"),
     log:
         "logs/predict.log",
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT
 
@@ -100,5 +108,7 @@ rule report_strike_error:
         code=code("report_strike_error"),
     log:
         "logs/report_strike_error.log",
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT

@@ -18,6 +18,8 @@ rule calibration:
         code=code("calibration"),
     log:
         "logs/calibration.log",
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT
 
@@ -37,6 +39,8 @@ rule paddle:
         code=code("paddle"),
     log:
         "logs/paddle/{session}.log",
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT
 
@@ -53,6 +57,8 @@ rule detection:
         "logs/detection/{session}_{cam}.log",
     benchmark:
         "benchmarks/results/detection/{session}_{cam}.tsv"
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT
 
@@ -71,6 +77,8 @@ rule pose2d:
         code=code("pose2d"),
     log:
         "logs/pose2d/{session}_{cam}.log",
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT
 
@@ -94,6 +102,8 @@ rule triangulation:
         code=code("triangulation"),
     log:
         "logs/triangulation/{session}.log",
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT
 
@@ -119,5 +129,7 @@ rule report_perception:
         code=code("report_perception"),
     log:
         "logs/report_perception.log",
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT

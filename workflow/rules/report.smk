@@ -13,5 +13,7 @@ rule report_page:
         table=r"[a-z_]+",
     log:
         "logs/report_page/{stage}_{table}.log",
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT

@@ -1,17 +1,14 @@
 # The simulated robot: every controller (one job each, tuned on the calibration hits where it has a sweep)
 # against the test hits' measured flights, the report (Tables 2-4 and the joint limits), and a few episodes
 # as Foxglove scenes with the simulation figure.
-from pingpong.uncertainty.tables import ESTIMATORS
+from pingpong.robot.controllers import CONTROLLERS, controller_names
 
 ROBOT = config["robot"]
-ROBOT_CONTROLLERS = ["servo", "anticipatory", "uncertainty_aware"] + (
-    ["confidence_scaled"] if ROBOT["estimator"] else [])
+# the registered controllers; those that follow an estimator only when one is configured
+ROBOT_CONTROLLERS = controller_names(with_uncertainty=ROBOT["estimator"] is not None)
 ROBOT_SETTINGS = {k: ROBOT[k] for k in ("anticipation_start_frame", "servo_start_frame", "servo_period_frames",
                                         "latency_frames", "control_dt_s", "alpha_grid", "confidence_quantiles",
                                         "max_flight_s")}
-if ROBOT["estimator"] and ROBOT["estimator"] not in ESTIMATORS:
-    raise WorkflowError(f"robot.estimator '{ROBOT['estimator']}' is not an uncertainty estimator; "
-                        f"expected one of {list(ESTIMATORS)} or null")
 
 
 rule simulate_robot:
@@ -22,9 +19,11 @@ rule simulate_robot:
         # the robot's description: read from these inputs, so an edit to either reruns the rule
         limits="config/robot/limits.yaml",
         urdf="config/robot/iiwa14_ridgeback.urdf",
-        # the confidence-scaled controller follows the configured estimator's uncertainties
+        # a controller that follows an estimator reads the configured one's uncertainties
         uncertainty=lambda wc: (
-            [f"processed/uncertainty/{ROBOT['estimator']}.parquet"] if wc.controller == "confidence_scaled" else []
+            [f"processed/uncertainty/{ROBOT['estimator']}.parquet"]
+            if CONTROLLERS[wc.controller].uses_uncertainty
+            else []
         ),
     output:
         sim="processed/sim/{controller}.parquet",
@@ -40,6 +39,8 @@ rule simulate_robot:
         "logs/simulate_robot/{controller}.log",
     benchmark:
         "benchmarks/results/simulate_robot/{controller}.tsv"
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT
 
@@ -63,6 +64,8 @@ rule report_robot:
         code=code("report_robot"),
     log:
         "logs/report_robot.log",
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT
 
@@ -91,5 +94,7 @@ rule robot_scene:
         code=code("robot_scene"),
     log:
         "logs/robot_scene.log",
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT

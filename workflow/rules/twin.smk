@@ -13,6 +13,8 @@ rule twin_rig:
         code=code("twin_rig"),
     log:
         "logs/twin_rig.log",
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT
 
@@ -33,6 +35,8 @@ rule twin_simulate:
         "logs/twin_simulate/{session}.log",
     benchmark:
         "benchmarks/results/twin_simulate/{session}.tsv"
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT
 
@@ -50,6 +54,8 @@ rule report_twin_flights:
         code=code("report_twin_flights"),
     log:
         "logs/report_twin_flights.log",
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT
 
@@ -71,6 +77,8 @@ rule twin_calibration:
         code=code("twin_calibration"),
     log:
         "logs/twin_calibration.log",
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT
 
@@ -94,6 +102,8 @@ rule twin_camera:
         "logs/twin_camera/{session}_{cam}.log",
     benchmark:
         "benchmarks/results/twin_camera/{session}_{cam}.tsv"
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT
 
@@ -111,6 +121,8 @@ rule twin_openpose:
         code=code("twin_openpose"),
     log:
         "logs/twin_openpose/{session}_{cam}.log",
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT
 
@@ -127,5 +139,7 @@ rule twin_optitrack:
         code=code("twin_optitrack"),
     log:
         "logs/twin_optitrack/{session}.log",
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT

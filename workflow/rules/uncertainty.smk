@@ -1,6 +1,6 @@
 # Uncertainty: an ensemble of the selected configuration (one job per member), every estimator fitted
 # and applied to the calibration and test hits, and the report.
-from pingpong.uncertainty.tables import ESTIMATORS
+from pingpong.uncertainty.tables import ESTIMATORS, MODEL_FILES  # the registry's names
 
 UNCERTAINTY = config["uncertainty"]
 MEMBERS = range(UNCERTAINTY["ensemble_size"])
@@ -26,6 +26,8 @@ rule ensemble_member:
         "benchmarks/results/ensemble_member/member{member}.tsv"
     resources:
         gpu=1 if config["device"] == "cuda" else 0,
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT
 
@@ -38,12 +40,9 @@ rule fit_uncertainty:
     output:
         tables=expand("processed/uncertainty/{estimator}.parquet", estimator=ESTIMATORS),
         fitted="processed/uncertainty/estimators.json",
-        knn="processed/uncertainty/knn.safetensors",
-        knn_sidecar="processed/uncertainty/knn.json",
-        heads="processed/uncertainty/quantile_heads.safetensors",
-        heads_sidecar="processed/uncertainty/quantile_heads.json",
-        error_head="processed/uncertainty/error_head.safetensors",
-        error_head_sidecar="processed/uncertainty/error_head.json",
+        # the learned estimators' models (safetensors) and their sidecars (hyperparameters, provenance)
+        models=expand("processed/uncertainty/{model}.safetensors", model=MODEL_FILES),
+        sidecars=expand("processed/uncertainty/{model}.json", model=MODEL_FILES),
     params:
         settings=UNCERTAINTY,
         seed=config["seed"],
@@ -52,6 +51,8 @@ rule fit_uncertainty:
         "logs/fit_uncertainty.log",
     benchmark:
         "benchmarks/results/fit_uncertainty.tsv"
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT
 
@@ -93,5 +94,7 @@ rule report_uncertainty:
         code=code("report_uncertainty"),
     log:
         "logs/report_uncertainty.log",
+    conda:
+        CONDA_ENV
     script:
         STAGE_SCRIPT

@@ -39,10 +39,23 @@ def _describe(err: jsonschema.ValidationError) -> str:
     return f"config key '{key}': {err.message}"
 
 
-def validate_config(config: dict, schema_path) -> dict:
-    """Validate `config` in place (filling defaults); raise ConfigError listing every problem."""
+def _with_enums(schema: dict, enums: dict) -> dict:
+    """The schema with `enum` set at each dotted key of `enums` (names that live in a registry)."""
+    for dotted, values in enums.items():
+        node = schema
+        for key in dotted.split("."):
+            node = node["properties"][key]
+        node["enum"] = list(values)
+    return schema
+
+
+def validate_config(config: dict, schema_path, enums: dict | None = None) -> dict:
+    """Validate `config` in place (filling defaults); raise ConfigError listing every problem.
+
+    enums: dotted key -> allowed values, for keys whose values are registered names (e.g. the
+    uncertainty estimators), so that the schema never keeps a second list of them."""
     with open(schema_path) as f:
-        schema = yaml.safe_load(f)
+        schema = _with_enums(yaml.safe_load(f), enums or {})
     validator = _with_defaults(jsonschema.Draft202012Validator)(schema)
     errors = sorted(validator.iter_errors(config), key=lambda e: list(e.absolute_path))
     if errors:

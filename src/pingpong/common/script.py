@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pingpong
 from pingpong.common.artifacts import Provenance
-from pingpong.common.stages import entry_module
+from pingpong.common.stages import entry_file, entry_module
 
 
 class Named(dict):
@@ -107,6 +107,7 @@ def run_rule(smk=None) -> None:
     ctx = _from_snakemake(smk) if smk is not None else _from_argv(sys.argv[1:])
     script = Path(smk.scriptdir) if smk is not None else Path(sys.argv[0]).resolve().parent
     check_checkout(script.parents[1])  # workflow/scripts/ -> the checkout's root
+    entry_file(ctx.stage, script.parents[1])  # a clear error naming the expected file
     main = importlib.import_module(entry_module(ctx.stage)).main
     pin_threads(getattr(smk, "threads", 1))
     with contextlib.ExitStack() as stack:

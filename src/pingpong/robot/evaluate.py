@@ -1,13 +1,7 @@
-"""The controllers compared in the paper's Tables 2-4 (and one beyond it), run over the measured test hits.
+"""A controller (controllers.py, the registered kinds) run over the measured test hits.
 
 Each controller sets the speed share alpha of every control step (episode.run_episode's per-step alpha)
-before the first visual-servoing goal is usable; from then on every controller servos at alpha_servo = 1:
-  - servo: alpha1 = alpha2 = 0, the robot waits for visual servoing;
-  - anticipatory: alpha1 = alpha2 = 1 on the latest prediction from t = -10 frames;
-  - uncertainty_aware (the paper's): alpha1 before the hit, alpha2 after it, but 0 while the latest
-    predicted strike point lies in the centre region (the robot waits there anyway);
-  - confidence_scaled (beyond the paper): alpha = ramp(u) of the latest prediction's calibrated
-    uncertainty u: 1 for u <= u_full, 0 for u >= u_zero, linear between.
+before the first visual-servoing goal is usable; from then on every controller servos at alpha_servo = 1.
 The anticipation goal is (predicted strike x, anticipation_z): the models predict the path in the table
 plane only, so the height is a fixed guess (the training hits' median strike height, simulate_robot).
 """
@@ -20,6 +14,7 @@ import pandas as pd
 from pingpong.common.artifacts import Schema
 from pingpong.frames import REGION_EDGE_X
 from pingpong.robot.control import ControlParams
+from pingpong.robot.controllers import Controller
 from pingpong.robot.episode import (
     FRAME_DT,
     EpisodeParams,
@@ -31,20 +26,10 @@ from pingpong.robot.episode import (
 from pingpong.robot.flights import HIT_KEYS, prediction_series
 from pingpong.robot.model import Robot
 
-CONTROLLERS = ("servo", "anticipatory", "uncertainty_aware", "confidence_scaled")
 SIM = Schema("robot_sim", 1, (
     "controller", "session", "rally", "hit", "region", "strike_x", "strike_z", "hit_ball", "end_distance_m",
     "anticipated", "limits_ok", "max_velocity_ratio", "max_acceleration_ratio", "min_position_margin"))
 CHOICE = Schema("robot_controller", 1)  # processed/sim/{controller}.json: the settings and the sweep
-
-
-@dataclass(frozen=True)
-class Controller:
-    name: str
-    alpha1: float = 0.0  # speed share on the prediction before the hit
-    alpha2: float = 0.0  # after the hit, until the first servo goal
-    skip_centre: bool = False  # the paper's rule: no anticipation on a predicted strike in the centre
-    confidence: tuple[float, float] | None = None  # (u_full, u_zero) m of the uncertainty ramp
 
 
 @dataclass(frozen=True)

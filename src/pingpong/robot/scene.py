@@ -51,7 +51,8 @@ from pingpong.frames import (
     TABLE_HALF_WIDTH,
 )
 from pingpong.io.mcap_io import SceneWriter
-from pingpong.robot.evaluate import Controller, Prediction, SimSettings, sim_settings, simulate_hit
+from pingpong.robot.controllers import Controller
+from pingpong.robot.evaluate import Prediction, SimSettings, sim_settings, simulate_hit
 from pingpong.robot.flights import prediction_series
 from pingpong.robot.model import PADDLE_RADIUS, Robot
 
@@ -87,14 +88,6 @@ class SceneEpisode:
 
 
 # ---------------------------------------------------------------- the episode
-
-def controller_from_choice(choice: dict) -> Controller:
-    """The controller simulate_robot chose (its processed/sim/{controller}.json)."""
-    confidence = choice.get("confidence_m")
-    return Controller(choice["controller"], float(choice["alpha1"]), float(choice["alpha2"]),
-                      bool(choice["skip_centre"]),
-                      None if confidence is None else tuple(map(float, confidence)))
-
 
 def scene_hits(dataset: pd.DataFrame, n_hits: int) -> pd.DataFrame:
     """The first n_hits test hits of a DATASET table, in its order (config robot.scene_hits)."""
@@ -183,7 +176,7 @@ def controller_scenes(robot: Robot, hits: pd.DataFrame, camera_ns: dict[str, np.
                       settings: dict) -> list[SceneEpisode]:
     """episode_scene of every row of `hits` under the controller of a processed/sim/{controller}.json
     (choice); camera_ns: each session's frame times; settings: the rule's robot settings."""
-    controller = controller_from_choice(choice)
+    controller = Controller.from_choice(choice)
     sim = sim_settings(settings, choice["anticipation_z_m"])
     return [episode_scene(robot, hit, camera_ns[hit.session], flights[k], predictions[k], labels[k],
                           controller, sim) for k, hit in enumerate(hits.itertuples(index=False))]

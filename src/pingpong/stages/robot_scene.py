@@ -10,8 +10,7 @@ from pingpong.common.artifacts import read_json, read_table
 from pingpong.curation.dataset import DATASET
 from pingpong.learning.cv import PREDICTIONS
 from pingpong.perception.triangulation import BALL3D
-from pingpong.robot.evaluate import CHOICE, SIM, hit_predictions
-from pingpong.robot.flights import hit_flights
+from pingpong.robot.evaluate import CHOICE, SIM
 from pingpong.robot.model import load_robot
 from pingpong.robot.scene import (
     check_against_sim,
@@ -22,6 +21,7 @@ from pingpong.robot.scene import (
     write_scene_mcap,
 )
 from pingpong.robot.scene_figure import plot_scenes
+from pingpong.robot.simulate import final_predictions, hit_parts
 from pingpong.uncertainty.tables import UNCERTAINTY
 
 log = logging.getLogger("robot_scene")
@@ -30,12 +30,10 @@ log = logging.getLogger("robot_scene")
 def main(ctx):
     p, cfg, i = ctx.params, ctx.params["settings"], ctx.input
     hits = scene_hits(read_table(i.dataset, DATASET), p["n_hits"])
-    predictions = read_table(i.predictions, PREDICTIONS)
-    predictions = predictions[predictions["model"] == "final"]
+    predictions = final_predictions(read_table(i.predictions, PREDICTIONS))
     uncertainty = read_table(i.uncertainty[0], UNCERTAINTY) if i.get("uncertainty") else None
     balls = {s: read_table(f, BALL3D, columns=["time_ns", "x", "y", "z"])
              for s, f in zip(p["sessions"], i.balls, strict=True)}
-    flights = hit_flights(hits, balls, cfg["max_flight_s"])
     labels = prediction_labels(predictions, hits)
     robot = load_robot(ctx.input.urdf, ctx.input.limits)
     visuals = robot_visuals(robot)
@@ -46,8 +44,7 @@ def main(ctx):
     camera_ns = {s: ball["time_ns"].to_numpy() for s, ball in balls.items()}
     scenes = []
     for name, sim_path, choice_path in zip(p["controllers"], i.sims, i.choices, strict=True):
-        # as in simulate_robot: only the confidence-scaled controller reads the uncertainties
-        hit_preds = hit_predictions(predictions, hits, uncertainty if name == "confidence_scaled" else None)
+        _, flights, hit_preds = hit_parts(hits, balls, predictions, uncertainty, name, cfg["max_flight_s"])
         episodes = controller_scenes(robot, hits, camera_ns, flights, hit_preds, labels,
                                      read_json(choice_path, CHOICE), cfg)
         sim = read_table(sim_path, SIM)

@@ -1,131 +1,250 @@
-"""Every uncertainty estimator fitted and applied to the final model's strike-point predictions.
+"""Every uncertainty estimator of the strike point, registered by name (registry.py has the interface).
 
 Parts (DATASET's split, by rally): the k-NN regressor, the quantile heads and the error head learn
 from the training hits' out-of-fold errors; every conformal quantile and the time-to-hit trend come from the
 calibration hits (grouped by hit, see conformal.py); the estimators are applied to the calibration
 and test hits. Every estimator scores the same point predictions (the final model's), so their
 errors are shared and only the uncertainty differs.
+
+The models that need torch or scipy are imported inside the methods that use them: the workflow
+imports this module for the names alone (the code hash still follows those imports).
 """
 
 import numpy as np
-import pandas as pd
 
-from pingpong.learning.models import FRAMES_BEFORE_HIT
 from pingpong.uncertainty.conformal import (
     conformal_quantile,
     cqr_scores,
     mondrian_quantiles,
     normalised_scores,
 )
-from pingpong.uncertainty.error_head import fit_error_head, predict_error
-from pingpong.uncertainty.knn import fit_knn, predict_knn
-from pingpong.uncertainty.metrics import spearman, within_frames
-from pingpong.uncertainty.quantile_heads import fit_quantile_heads, predict_quantiles
-from pingpong.uncertainty.tables import ESTIMATORS, HIT_KEYS
+from pingpong.uncertainty.registry import Band, Estimator, Hits, register
 from pingpong.uncertainty.time_to_hit import fit_trend, trend
 
 DIFFICULTY_FLOOR = 0.1  # sigma = difficulty + this share of its calibration median: no zero widths
-_PREDICTED = ["a1", "a2", "b", "strike_x_pred"]
+PREDICTED = ["a1", "a2", "b", "strike_x_pred"]  # the prediction's columns that the quantile heads read
 
 
-def frame_rows(dataset: pd.DataFrame, predictions: pd.DataFrame) -> pd.DataFrame:
-    """One row per (dataset hit, frame before the hit), in dataset order and FRAMES_BEFORE_HIT order
-    within a hit (the row order of features.frame_features), with the final model's prediction
-    (out of fold for training hits) and 'hit_index', the hit's row in `dataset`."""
-    n, k = len(dataset), len(FRAMES_BEFORE_HIT)
-    rows = dataset.iloc[np.repeat(np.arange(n), k)][[*HIT_KEYS, "split", "strike_x"]].reset_index(drop=True)
-    rows["hit_index"] = np.repeat(np.arange(n), k)
-    rows["frames_before_hit"] = np.tile(FRAMES_BEFORE_HIT, n)
-    final = predictions.loc[predictions["model"] == "final", [*HIT_KEYS, "frames_before_hit", *_PREDICTED]]
-    rows = rows.merge(final, on=[*HIT_KEYS, "frames_before_hit"], how="left", validate="one_to_one")
-    missing = rows["strike_x_pred"].isna()
-    if missing.any():
-        first = rows.loc[missing, HIT_KEYS].iloc[0].to_dict()
-        raise ValueError(f"predictions: no 'final' prediction for {int(missing.sum())} (hit, frame) rows, "
-                         f"first {first}; rebuild processed/predictions.parquet")
-    rows["abs_error"] = np.abs(rows["strike_x_pred"] - rows["strike_x"])
-    return rows
+def _interval(pred: np.ndarray, half: np.ndarray) -> Band:
+    return Band(half, pred - half, pred + half)
 
 
-def _normalised(abs_error, difficulty, cal, groups, alpha) -> tuple[np.ndarray, dict]:
-    floor = DIFFICULTY_FLOOR * float(np.median(difficulty[cal]))
-    sigma = difficulty + floor
-    q = conformal_quantile(normalised_scores(abs_error[cal], sigma[cal]), alpha, groups[cal])
-    return q * sigma, {"quantile": q, "floor": floor}
+@register
+class Ensemble(Estimator):
+    """The paper's: the std of the members' strike points (members refit with other seeds)."""
+
+    name, paper = "ensemble", True
+
+    def apply(self, hits: Hits) -> Band:
+        return Band(hits.ensemble_strike.std(axis=0, ddof=1))
 
 
-def _member_error_agreement(ensemble_strike, y, frames, rows_of) -> float:
-    """Mean Spearman, within frames, between two members' absolute errors over the given rows, averaged
-    over member pairs: near 1 when every member errs on the same hits (what no spread can see)."""
-    errors = np.abs(ensemble_strike[:, rows_of] - y[rows_of])
-    m = len(errors)
-    return float(np.mean([within_frames(spearman, errors[i], errors[j], frames[rows_of])
-                          for i in range(m) for j in range(i + 1, m)]))
+@register
+class Conformal(Estimator):
+    """The paper's split conformal: one quantile of the calibration errors, one width for every row."""
+
+    name, paper = "conformal", True
+
+    def fit(self, hits, fitted, rng):
+        cal = hits.calibration
+        self.quantile = conformal_quantile(hits.abs_error[cal], self.alpha, hits.groups[cal])
+
+    def apply(self, hits):
+        return _interval(hits.pred, np.full(len(hits.rows), self.quantile))
+
+    def state(self):
+        return {"quantile": self.quantile}
+
+    def restore(self, state, model_stem, fitted):
+        self.quantile = state["quantile"]
 
 
-def fit_estimators(rows: pd.DataFrame, features: np.ndarray, X: np.ndarray, ensemble_strike: np.ndarray,
-                   coverage: float, knn_k: int, heads_settings: dict, error_head_settings: dict,
-                   rng: np.random.Generator):
-    """(tables, fitted, models): per estimator the UNCERTAINTY table of the calibration and test rows;
-    the fitted constants and diagnostics (JSON-able); the learned models ('knn', 'quantile_heads',
-    'error_head').
+@register
+class Knn(Estimator):
+    """The paper's k-NN regressor of the absolute error from the inputs (knn.py)."""
 
-    rows: `frame_rows`; features: `features.frame_features` of the same rows; X (hits, T, 39): the
-    dataset's inputs (rows are hit-major, FRAMES_BEFORE_HIT order within a hit); ensemble_strike
-    (M, rows): every member's strike-point x. Half-widths serve as the uncertainty of interval methods.
-    """
-    alpha = 1 - coverage
-    split, groups = rows["split"].to_numpy(), rows["hit_index"].to_numpy()
-    train, cal, out = split == "train", split == "calibration", split != "train"
-    pred, err = rows["strike_x_pred"].to_numpy(), rows["abs_error"].to_numpy()
-    frames, y = rows["frames_before_hit"].to_numpy(), rows["strike_x"].to_numpy()
-    if not cal.any() or not train.any():
-        raise ValueError(f"fit_estimators: need training and calibration hits; splits {sorted(set(split))}")
+    name, paper, model_file = "knn", True, "knn"
 
-    half, fitted = {}, {"coverage": coverage}
-    spread = ensemble_strike.std(axis=0, ddof=1)
-    knn = fit_knn(features[train], err[train], knn_k)
-    knn_error = np.zeros(len(rows))
-    knn_error[~train] = predict_knn(knn, features[~train])
-    fitted["knn"] = {"k": knn.k}
-    intercept, slope = fit_trend(frames[cal], err[cal])
-    fitted["time_to_hit"] = {"intercept": intercept, "slope": slope}
-    fitted["conformal"] = {"quantile": conformal_quantile(err[cal], alpha, groups[cal])}
-    half["conformal"] = np.full(len(rows), fitted["conformal"]["quantile"])
-    by_frame = mondrian_quantiles(err[cal], frames[cal], alpha, groups[cal])
-    fitted["mondrian"] = {"quantile_by_frame": {str(f): q for f, q in by_frame.items()}}
-    half["mondrian"] = np.array([by_frame[f] for f in frames])
-    half["normalised_knn"], fitted["normalised_knn"] = _normalised(err, knn_error, cal, groups, alpha)
-    half["normalised_ensemble"], fitted["normalised_ensemble"] = _normalised(err, spread, cal, groups, alpha)
-    k = len(FRAMES_BEFORE_HIT)
-    train_hits, pred_by_hit = train.reshape(-1, k)[:, 0], pred.reshape(-1, k)
-    error_head = fit_error_head(X[train_hits], pred_by_hit[train_hits], err.reshape(-1, k)[train_hits], rng,
-                                **error_head_settings)
-    head_error = predict_error(error_head, X, pred_by_hit).reshape(-1)
-    half["normalised_error_head"], fitted["normalised_error_head"] = _normalised(err, head_error, cal, groups,
-                                                                                 alpha)
-    test = split == "test"
-    fitted["diagnostics"] = {
-        "member_error_spearman_within_frame": _member_error_agreement(ensemble_strike, y, frames, test),
-        "error_head_training_spearman_within_frame": within_frames(spearman, head_error[train], err[train],
-                                                                   frames[train]),
-    }
+    def fit(self, hits, fitted, rng):
+        from pingpong.uncertainty.knn import fit_knn
 
-    head_inputs = np.hstack([features, rows[_PREDICTED].to_numpy(float)])
-    heads = fit_quantile_heads(head_inputs[train], (y - pred)[train], (alpha / 2, 1 - alpha / 2), rng,
-                               **heads_settings)
-    quantiles = pred[:, None] + predict_quantiles(heads, head_inputs)
-    q = conformal_quantile(cqr_scores(y[cal], quantiles[cal, 0], quantiles[cal, 1]), alpha, groups[cal])
-    fitted["cqr"] = {"quantile": q, "levels": list(heads.levels)}
-    cqr_lower, cqr_upper = quantiles[:, 0] - q, quantiles[:, 1] + q
+        train = hits.train
+        self.model = fit_knn(hits.features[train], hits.abs_error[train], self.settings.knn_k)
 
-    uncertainty = {"ensemble": spread, "knn": knn_error, "time_to_hit": trend(intercept, slope, frames),
-                   "error_head": head_error, **half, "cqr": (cqr_upper - cqr_lower) / 2}
-    bounds = {name: (pred - h, pred + h) for name, h in half.items()} | {"cqr": (cqr_lower, cqr_upper)}
-    base = rows.loc[out, [*HIT_KEYS, "split", "frames_before_hit", "strike_x", "strike_x_pred", "abs_error"]]
-    tables = {}
-    for name in ESTIMATORS:
-        lower, upper = bounds.get(name, (np.full(len(rows), np.nan),) * 2)
-        tables[name] = base.assign(uncertainty=uncertainty[name][out], lower=lower[out],
-                                   upper=upper[out]).reset_index(drop=True)
-    return tables, fitted, {"knn": knn, "quantile_heads": heads, "error_head": error_head}
+    def apply(self, hits):
+        from pingpong.uncertainty.knn import predict_knn
+
+        return Band(predict_knn(self.model, hits.features))
+
+    def state(self):
+        return {"k": self.model.k}
+
+    def save_model(self, stem, prov):
+        from pingpong.uncertainty.knn import save_knn
+
+        save_knn(self.model, stem, prov)
+
+    def restore(self, state, model_stem, fitted):
+        from pingpong.uncertainty.knn import load_knn
+
+        self.model = load_knn(model_stem)
+
+
+@register
+class TimeToHit(Estimator):
+    """The paper's time-to-hit: the calibration errors' linear trend over the frames before the hit."""
+
+    name, paper = "time_to_hit", True
+
+    def fit(self, hits, fitted, rng):
+        cal = hits.calibration
+        self.intercept, self.slope = fit_trend(hits.frames[cal], hits.abs_error[cal])
+
+    def apply(self, hits):
+        return Band(trend(self.intercept, self.slope, hits.frames))
+
+    def state(self):
+        return {"intercept": self.intercept, "slope": self.slope}
+
+    def restore(self, state, model_stem, fitted):
+        self.intercept, self.slope = state["intercept"], state["slope"]
+
+
+@register
+class ErrorHead(Estimator):
+    """A small GRU that reads the inputs and the prediction and learns the training hits' out-of-fold
+    errors (error_head.py)."""
+
+    name, model_file = "error_head", "error_head"
+
+    def fit(self, hits, fitted, rng):
+        from pingpong.uncertainty.error_head import fit_error_head
+
+        first_frame = hits.by_hit(hits.train)[:, 0]  # a hit's rows share its split
+        pred, err = hits.by_hit(hits.pred), hits.by_hit(hits.abs_error)
+        self.model = fit_error_head(hits.X[first_frame], pred[first_frame], err[first_frame], rng,
+                                    hidden=self.settings.error_head_hidden,
+                                    epochs=self.settings.error_head_epochs)
+
+    def apply(self, hits):
+        from pingpong.uncertainty.error_head import predict_error
+
+        return Band(predict_error(self.model, hits.X, hits.by_hit(hits.pred)).reshape(-1))
+
+    def save_model(self, stem, prov):
+        from pingpong.uncertainty.error_head import save_error_head
+
+        save_error_head(self.model, stem, prov)
+
+    def restore(self, state, model_stem, fitted):
+        from pingpong.uncertainty.error_head import load_error_head
+
+        self.model = load_error_head(model_stem)
+
+
+@register
+class Mondrian(Estimator):
+    """Mondrian conformal: one quantile per frame before the hit."""
+
+    name = "mondrian"
+
+    def fit(self, hits, fitted, rng):
+        cal = hits.calibration
+        self.by_frame = mondrian_quantiles(hits.abs_error[cal], hits.frames[cal], self.alpha,
+                                           hits.groups[cal])
+
+    def apply(self, hits):
+        return _interval(hits.pred, np.array([self.by_frame[f] for f in hits.frames]))
+
+    def state(self):
+        return {"quantile_by_frame": {str(f): q for f, q in self.by_frame.items()}}
+
+    def restore(self, state, model_stem, fitted):
+        self.by_frame = {int(f): q for f, q in state["quantile_by_frame"].items()}
+
+
+class Normalised(Estimator):
+    """Normalised conformal on another estimator's uncertainty (the difficulty): |y - y_hat| / sigma,
+    sigma = difficulty + a floor of DIFFICULTY_FLOOR times its calibration median."""
+
+    base: str
+
+    def fit(self, hits, fitted, rng):
+        self.difficulty = fitted[self.base]
+        cal = hits.calibration
+        difficulty = self.difficulty.apply(hits).uncertainty
+        self.floor = DIFFICULTY_FLOOR * float(np.median(difficulty[cal]))
+        sigma = difficulty + self.floor
+        self.quantile = conformal_quantile(normalised_scores(hits.abs_error[cal], sigma[cal]), self.alpha,
+                                           hits.groups[cal])
+
+    def apply(self, hits):
+        return _interval(hits.pred, self.quantile * (self.difficulty.apply(hits).uncertainty + self.floor))
+
+    def state(self):
+        return {"quantile": self.quantile, "floor": self.floor}
+
+    def restore(self, state, model_stem, fitted):
+        self.difficulty, self.quantile, self.floor = fitted[self.base], state["quantile"], state["floor"]
+
+
+@register
+class NormalisedKnn(Normalised):
+    name, base = "normalised_knn", "knn"
+
+
+@register
+class NormalisedEnsemble(Normalised):
+    name, base = "normalised_ensemble", "ensemble"
+
+
+@register
+class NormalisedErrorHead(Normalised):
+    name, base = "normalised_error_head", "error_head"
+
+
+@register
+class Cqr(Estimator):
+    """Conformalised quantile regression (Romano et al. 2019) on quantile heads of the residual that read
+    the row's features and the prediction (quantile_heads.py)."""
+
+    name, model_file = "cqr", "quantile_heads"
+
+    @staticmethod
+    def _inputs(hits):
+        return np.hstack([hits.features, hits.rows[PREDICTED].to_numpy(float)])
+
+    def _quantiles(self, hits):
+        from pingpong.uncertainty.quantile_heads import predict_quantiles
+
+        return hits.pred[:, None] + predict_quantiles(self.model, self._inputs(hits))
+
+    def fit(self, hits, fitted, rng):
+        from pingpong.uncertainty.quantile_heads import fit_quantile_heads
+
+        train, cal = hits.train, hits.calibration
+        self.model = fit_quantile_heads(self._inputs(hits)[train], (hits.y - hits.pred)[train],
+                                        (self.alpha / 2, 1 - self.alpha / 2), rng,
+                                        hidden=self.settings.quantile_hidden,
+                                        epochs=self.settings.quantile_epochs)
+        quantiles = self._quantiles(hits)
+        self.quantile = conformal_quantile(cqr_scores(hits.y[cal], quantiles[cal, 0], quantiles[cal, 1]),
+                                           self.alpha, hits.groups[cal])
+
+    def apply(self, hits):
+        quantiles = self._quantiles(hits)
+        lower, upper = quantiles[:, 0] - self.quantile, quantiles[:, 1] + self.quantile
+        return Band((upper - lower) / 2, lower, upper)
+
+    def state(self):
+        return {"quantile": self.quantile, "levels": list(self.model.levels)}
+
+    def save_model(self, stem, prov):
+        from pingpong.uncertainty.quantile_heads import save_heads
+
+        save_heads(self.model, stem, prov)
+
+    def restore(self, state, model_stem, fitted):
+        from pingpong.uncertainty.quantile_heads import load_heads
+
+        self.model, self.quantile = load_heads(model_stem), state["quantile"]

@@ -1,0 +1,141 @@
+"""The estimator interface and its registry: every uncertainty estimator is a class registered by name.
+
+An estimator is fitted on the training hits (models that learn errors) and the calibration hits
+(conformal quantiles, trends), applied to any hits, and saved: its constants as JSON (`state`, in
+processed/uncertainty/estimators.json under its name) and, where it learns a model, that model as
+safetensors (`model_file`). Registration order is fitting order (an estimator may build on those
+before it, e.g. normalised conformal on the k-NN error) and the order of every table and report.
+The workflow, the config's enums, the reports and the robot read the names from here, so adding an
+estimator touches one module: `pingpong.uncertainty.estimators` (docs/architecture.md, "Registries").
+
+Light on purpose (numpy and pandas only): the Snakefile imports it.
+"""
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+import pandas as pd
+
+
+@dataclass(frozen=True)
+class UncertaintySettings:
+    """The config's `uncertainty` section, typed (defaults: config/schema.yaml only)."""
+
+    ensemble_size: int
+    coverage: float
+    knn_k: int
+    quantile_hidden: int
+    quantile_epochs: int
+    error_head_hidden: int
+    error_head_epochs: int
+
+    @classmethod
+    def from_config(cls, section: dict) -> "UncertaintySettings":
+        return cls(**section)
+
+
+@dataclass(frozen=True, eq=False)
+class Hits:
+    """What every estimator sees: one row per (hit, frame before the hit) of `rows` (fit.frame_rows:
+    hit-major, FRAMES_BEFORE_HIT order within a hit), the rows' features, the hits' inputs X
+    (hits, T, 39) and every ensemble member's strike-point x (members, rows)."""
+
+    rows: pd.DataFrame
+    features: np.ndarray
+    X: np.ndarray
+    ensemble_strike: np.ndarray
+
+    def column(self, name: str) -> np.ndarray:
+        return self.rows[name].to_numpy()
+
+    @property
+    def split(self) -> np.ndarray:
+        return self.column("split")
+
+    @property
+    def train(self) -> np.ndarray:
+        return self.split == "train"
+
+    @property
+    def calibration(self) -> np.ndarray:
+        return self.split == "calibration"
+
+    @property
+    def groups(self) -> np.ndarray:
+        """The hit of every row: conformal quantiles calibrate by hit (conformal.py)."""
+        return self.column("hit_index")
+
+    @property
+    def frames(self) -> np.ndarray:
+        return self.column("frames_before_hit")
+
+    @property
+    def pred(self) -> np.ndarray:
+        return self.column("strike_x_pred")
+
+    @property
+    def y(self) -> np.ndarray:
+        return self.column("strike_x")
+
+    @property
+    def abs_error(self) -> np.ndarray:
+        return self.column("abs_error")
+
+    def by_hit(self, values: np.ndarray) -> np.ndarray:
+        """Row values as (hits, frames)."""
+        return np.asarray(values).reshape(len(self.X), -1)
+
+
+@dataclass(frozen=True)
+class Band:
+    """An estimator's output on every row of the Hits it was applied to: the uncertainty (m; the
+    half-width for interval methods) and the interval's bounds (m), None where it gives no interval."""
+
+    uncertainty: np.ndarray
+    lower: np.ndarray | None = None
+    upper: np.ndarray | None = None
+
+
+class Estimator:
+    """The interface. `fit` sees the Hits (train and calibration rows), the estimators fitted before it
+    and the run's generator; `apply` gives a Band on any Hits; `state` and `save_model` keep what
+    `restore` needs to apply it again."""
+
+    name: ClassVar[str]
+    paper: ClassVar[bool] = False  # one of the paper's four
+    model_file: ClassVar[str | None] = None  # stem of its model under processed/uncertainty/, if any
+
+    def __init__(self, settings: UncertaintySettings):
+        self.settings = settings
+
+    @property
+    def alpha(self) -> float:
+        return 1 - self.settings.coverage
+
+    def fit(self, hits: Hits, fitted: dict, rng: np.random.Generator) -> None:
+        """Learn from hits.train / calibrate on hits.calibration; `fitted`: estimators fitted so far."""
+
+    def apply(self, hits: Hits) -> Band:
+        raise NotImplementedError
+
+    def state(self) -> dict:
+        """The fitted constants, JSON-able (empty: nothing to write)."""
+        return {}
+
+    def save_model(self, stem, prov) -> None:
+        raise NotImplementedError(f"estimator '{self.name}' has no model to save")
+
+    def restore(self, state: dict, model_stem, fitted: dict) -> None:
+        """Set the fitted state from `state` and the model at `model_stem` (as `fit` would have)."""
+
+
+REGISTRY: dict[str, type[Estimator]] = {}
+
+
+def register(cls: type[Estimator]) -> type[Estimator]:
+    """Class decorator: add an estimator under its name (a second one of the same name is an error)."""
+    if cls.name in REGISTRY:
+        raise ValueError(f"an uncertainty estimator named '{cls.name}' is already registered")
+    REGISTRY[cls.name] = cls
+    return cls
