@@ -52,7 +52,7 @@ class ControllerKind:
     name: str
     fixed: Controller | None = None  # one controller, or
     grid: Callable[[str, Tuning], list[Controller]] | None = None  # candidates swept on calibration hits
-    uses_uncertainty: bool = False  # follows the configured estimator's uncertainties (config robot.estimator)
+    uses_uncertainty: bool = False  # follows the uncertainties of config robot.estimator
     description: str = ""
 
 

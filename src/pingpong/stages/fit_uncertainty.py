@@ -21,8 +21,8 @@ def _stems(paths) -> dict[str, str]:
 def main(ctx):
     settings = UncertaintySettings.from_config(ctx.params["settings"])
     members = [load_net(stem) for stem in _stems(ctx.input.members).values()]
-    dataset, predictions = read_table(ctx.input.dataset, DATASET), read_table(ctx.input.predictions, PREDICTIONS)
-    hits = estimator_hits(dataset, predictions, members)
+    i = ctx.input
+    hits = estimator_hits(read_table(i.dataset, DATASET), read_table(i.predictions, PREDICTIONS), members)
     fitted = fit_estimators(hits, settings, rng_for(ctx.params["seed"], "uncertainty"))
     prov = ctx.provenance()
     tables, paths = estimator_tables(hits, fitted), _stems(ctx.output.tables)
