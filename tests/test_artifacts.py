@@ -136,3 +136,22 @@ def test_model_round_trip_without_pickle(tmp_path):
     assert hparams == {"hidden": 100, "cell": "gru"}
     assert torch.equal(loaded["w"], tensors["w"]) and torch.equal(loaded["b"], tensors["b"])
     assert (tmp_path / "m.safetensors").read_bytes()[:8] != b"\x80\x04\x95"  # not a pickle
+
+
+def test_content_hash_ignores_provenance_but_not_data(tmp_path):
+    from pingpong.common.content import compare_runs, content_sha256
+
+    for run, code in (("a", "code1"), ("b", "code2")):
+        (tmp_path / run / "processed").mkdir(parents=True)
+        write_table(_df(), tmp_path / run / "processed/t.parquet", BALL, Provenance.of("s", {}, code))
+        write_json({"k": 1}, tmp_path / run / "processed/j.json", BALL, Provenance.of("s", {}, code))
+    a, b = tmp_path / "a/processed", tmp_path / "b/processed"
+    assert (a / "t.parquet").read_bytes() != (b / "t.parquet").read_bytes()  # the code hash differs
+    assert content_sha256(a / "t.parquet") == content_sha256(b / "t.parquet")
+    assert content_sha256(a / "j.json") == content_sha256(b / "j.json")
+    write_table(_df().assign(x=_df()["x"] + 1e-12), b / "t.parquet", BALL, Provenance.of("s"))
+    write_json({"k": 2}, b / "j.json", BALL, Provenance.of("s"))
+    (b / "extra.md").write_text("x")
+    diff = compare_runs(tmp_path / "a", tmp_path / "b")
+    assert diff == {"only_in_a": [], "only_in_b": ["processed/extra.md"],
+                    "differ": ["processed/j.json", "processed/t.parquet"]}
