@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from workflow_util import ROBOT_LIMITS, ROBOT_URDF
 
-from pingpong.frames import STRIKE_Y
+from pingpong.frames import GRAVITY, STRIKE_Y
 from pingpong.robot.control import ControlParams, braking_speed, control_step
 from pingpong.robot.episode import EpisodeParams, run_episode
 from pingpong.robot.model import (
@@ -20,7 +20,7 @@ from pingpong.robot.model import (
     worst_case_accelerations,
 )
 from pingpong.robot.servo import servo_strike_estimate, split_at_bounce
-from pingpong.twin.ball import GRAVITY, aim_shots, simulate_flight, stop_at_y
+from pingpong.twin.ball import aim_shots, simulate_flight, stop_at_y
 
 ROBOT = load_robot(ROBOT_URDF, ROBOT_LIMITS)
 LIMIT_TOL = 1e-9  # relative: floating-point rounding only

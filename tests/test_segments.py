@@ -15,16 +15,11 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from pingpong.common.artifacts import Provenance, read_table, write_table
 from pingpong.curation.dataset import DATASET, build_dataset, dataset_arrays, input_sequences
+from pingpong.curation.filtering import filter_session
 from pingpong.curation.labels import mirror_points
-from pingpong.curation.segments import (
-    CANDIDATE_COLUMNS,
-    CURATION_RULES,
-    EVENT_COLUMNS,
-    JOINT_XYZ,
-    curate_segments,
-    filter_session,
-    find_segments,
-)
+from pingpong.curation.schemas import CANDIDATE_COLUMNS, CURATION_RULES, EVENT_COLUMNS
+from pingpong.curation.segments import curate_segments, find_segments
+from pingpong.curation.tracks import JOINT_XYZ
 from pingpong.frames import FRAME_NS, MODEL_JOINT_IDS, N_INPUT, ROT_COLUMNS
 from pingpong.twin.session import FaultRates, ball_positions_at, simulate_session
 

@@ -1,4 +1,5 @@
-"""The table frame, the lab's fixed dimensions and the joint sets (DESIGN.md "Frames and units").
+"""The table frame, the lab's fixed dimensions, physical constants and the joint sets
+(docs/architecture.md, "Frames and units").
 
 Table frame: origin at the centre of the table surface, x across the width, y along the
 length, z up. All values in SI units (metres, seconds, kilograms).
@@ -15,6 +16,7 @@ NET_OVERHANG = 0.1525  # the net reaches this far beyond each side line
 
 BALL_RADIUS = 0.020  # 40 mm ball
 BALL_MASS = 0.0027  # kg
+GRAVITY = 9.81  # m/s^2, along -z
 
 CAMERA_FPS = 100.0  # the master clock
 FRAME_NS = 10_000_000  # one camera frame in ns

@@ -1,4 +1,4 @@
-"""The one way artifacts are written and read (DESIGN.md "Artifacts are versioned").
+"""The one way artifacts are written and read (docs/architecture.md, "Artifacts").
 
 Parquet tables carry, in the file's key-value metadata under the key `pingpong`, a JSON record:
 schema name and version, stage, params hash, stage code hash, content hashes of the inputs and

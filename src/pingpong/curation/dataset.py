@@ -2,8 +2,8 @@
 
 Layout (one row per kept hit): 'x' holds the input sequence as a flat list of n_frames * 39 float32,
 row-major (frame, value): frame k is t = k - (n_frames - 1) frames, so the last frame is the hit (t = 0),
-and the 39 values are DESIGN.md's (8 hitter joints, hitter's paddle position and rotation, ball), all
-mirrored so that the hit travels towards -y. `dataset_arrays` reads it back into X (N, T, 39).
+and the 39 values are those of docs/architecture.md (8 hitter joints, hitter's paddle position and
+rotation, ball), all mirrored so that the hit travels towards -y. `dataset_arrays` reads it back into X (N, T, 39).
 
 Gaps: where curation allowed them (at most its max_*_frames per window), a missing value is the last
 value seen before it in the window (forward fill: causal, what a streaming predictor would hold too);
@@ -16,8 +16,8 @@ import pandas as pd
 
 from pingpong.common.artifacts import Schema
 from pingpong.curation.labels import mirror_frames
-from pingpong.curation.segments import JOINT_XYZ, PLAYER_END, paddle_arrays, per_player
 from pingpong.curation.splits import split_by_rally
+from pingpong.curation.tracks import JOINT_XYZ, PLAYER_END, paddle_arrays, per_player
 from pingpong.frames import N_INPUT
 
 DATASET = Schema("dataset", 1, (

@@ -1,4 +1,5 @@
-"""Ball events from a 3D ball track: table bounces, paddle hits and net crossings.
+"""Ball events from a 3D ball track: table bounces, paddle hits and net crossings (detect_events, which
+the filtering rule runs on the raw ball), and the unconfirmed samples dropped before.
 
 All detectors work on the finite samples only (a NaN row is a frame the ball was not seen), so NaN
 gaps neither create nor hide events, except one whose turning point falls inside a gap. Velocities are
@@ -9,8 +10,9 @@ slopes of straight-line fits over `span` s either side of a sample, not sample d
 import numpy as np
 import pandas as pd
 
-from pingpong.frames import BALL_RADIUS, TABLE_HALF_LENGTH, TABLE_HALF_WIDTH
-from pingpong.twin.ball import GRAVITY
+from pingpong.curation.schemas import EVENT_COLUMNS
+from pingpong.curation.tracks import PLAYER_END, fill_short_gaps, frame_seconds, paddle_arrays
+from pingpong.frames import BALL_RADIUS, GRAVITY, TABLE_HALF_LENGTH, TABLE_HALF_WIDTH
 
 TABLE_EXTENT = (-TABLE_HALF_WIDTH, TABLE_HALF_WIDTH, -TABLE_HALF_LENGTH, TABLE_HALF_LENGTH)  # x, x, y, y
 
@@ -168,3 +170,55 @@ def detect_net_crossings(times, ball, net_y: float = 0.0, hysteresis: float = 0.
                              "direction": "+y" if side < 0 else "-y"})
             side, last_on_side = float(np.sign(d[k])), k
     return pd.DataFrame(rows, columns=["index", "time", "direction"])
+
+
+def drop_ball_outliers(ball3d: pd.DataFrame, max_speed: float = 40.0, margin: float = 0.05,
+                       neighbours: int = 2, fs_hz: float = 100.0) -> pd.DataFrame:
+    """ball3d with the samples no neighbour confirms set unseen (x, y, z NaN, n_views 0): a sample is
+    kept when a seen sample within `neighbours` frames lies within max_speed (m/s, above a smash) * dt
+    + margin (m) of it. A triangulation onto a wrong pair of detections lands metres off its flight; an
+    isolated sample cannot be checked and is dropped too."""
+    xyz = ball3d[["x", "y", "z"]].to_numpy(float)
+    confirmed = np.zeros(len(xyz), bool)
+    for k in range(1, neighbours + 1):
+        step = np.linalg.norm(xyz[k:] - xyz[:-k], axis=1) <= max_speed * k / fs_hz + margin  # NaN: False
+        confirmed[k:] |= step
+        confirmed[:-k] |= step
+    out = ball3d.copy()
+    dropped = ~confirmed & np.isfinite(xyz).all(axis=1)
+    out.loc[dropped, ["x", "y", "z"]] = np.nan
+    out.loc[dropped, "n_views"] = 0
+    return out
+
+
+def detect_events(ball3d: pd.DataFrame, paddle: pd.DataFrame, hit_max_distance: float = 0.3,
+                  paddle_fill_s: float = 0.25, fs_hz: float = 100.0) -> pd.DataFrame:
+    """Hits, table bounces and net crossings of a session's raw 3D ball (EVENTS columns, in time order).
+
+    kind: 'hit' (player: the nearest paddle's; side: that player's end), 'bounce' (side: the table half)
+    or 'net' (side: the direction the ball goes). index: the ball3d row; time_ns: the sub-frame event
+    time. Paddle positions are interpolated across OptiTrack gaps of up to paddle_fill_s for this only:
+    a paddle lost for a few frames around the contact must not lose the hit.
+    """
+    time_ns = ball3d["time_ns"].to_numpy(np.int64)
+    t = frame_seconds(time_ns)
+    ball = ball3d[["x", "y", "z"]].to_numpy(float)
+    fill = int(round(paddle_fill_s * fs_hz))
+    paddles = {p: fill_short_gaps(paddle_arrays(paddle, p, time_ns)[:, :3], fill) for p in PLAYER_END}
+    # span: 3 samples either side at 100 Hz; at 0.03 s rounding in t can leave the third one out, and a
+    # contact frame lost behind the paddle then leaves one side a single sample, too few to time the hit
+    hits = detect_hits(t, ball, paddles, max_distance=hit_max_distance, span=3.5 / fs_hz)
+    hits = hits.assign(kind="hit", side=hits["player"].map(PLAYER_END))
+    bounces = detect_bounces(t, ball).assign(kind="bounce", player="")
+    net = detect_net_crossings(t, ball)
+    net = net.assign(kind="net", player="", side=net["direction"],
+                     **{a: ball[net["index"].to_numpy(int), k] for k, a in enumerate("xyz")})
+    found = [e for e in (hits, bounces, net) if len(e)]
+    if not found:
+        return pd.DataFrame({"kind": pd.Series(dtype=str), "index": pd.Series(dtype=np.int64),
+                             "time_ns": pd.Series(dtype=np.int64), "player": pd.Series(dtype=str),
+                             "side": pd.Series(dtype=str), **{a: pd.Series(dtype=float) for a in "xyz"}})
+    events = pd.concat(found, ignore_index=True)
+    events["time_ns"] = time_ns[0] + np.round(events["time"].to_numpy() * 1e9).astype(np.int64)
+    events["index"] = events["index"].astype(np.int64)
+    return events.sort_values(["index", "time_ns"], kind="stable").reset_index(drop=True)[list(EVENT_COLUMNS)]

@@ -1,4 +1,5 @@
-"""Zero-phase low-pass filtering of ball and pose signals that respects events and NaN gaps.
+"""The filtering rule's code: a session's ball and pose cleaned and low-passed (filter_session), by
+zero-phase filtering that respects events and NaN gaps.
 
 A Butterworth filter run forwards and backwards (scipy.signal.sosfiltfilt) has no phase lag, but it
 smears a discontinuity over ~1/cutoff s: a bounce or a hit would be rounded off and moved. So the
@@ -20,7 +21,15 @@ pieces of 1-3 samples are kept as measured.
 from functools import lru_cache
 
 import numpy as np
+import pandas as pd
 from scipy.signal import butter, sosfiltfilt
+
+from pingpong.curation.events import (
+    detect_events,
+    drop_ball_outliers,
+)
+from pingpong.curation.tracks import JOINT_VIEWS, JOINT_XYZ, frame_seconds, runs
+from pingpong.frames import MODEL_JOINT_IDS
 
 MIN_PIECE_SAMPLES = 4  # a quadratic through 3 samples is the samples themselves
 DEFAULT_PADLEN = 15  # sosfiltfilt's own padding for a 4th-order filter, the least used here
@@ -73,12 +82,6 @@ def _smooth_irregular(times: np.ndarray, values: np.ndarray, cutoff_hz: float, f
     return np.interp(times, grid, smoothed)
 
 
-def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Starts and stops ([start, stop)) of the True runs in a boolean mask."""
-    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    return np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-
-
 def lowpass_between_events(times_s, signal, event_indices, cutoff_hz: float, fs_hz: float = 100.0,
                            order: int = 4) -> np.ndarray:
     """Signal (T, D) or (T,) low-passed column by column, each piece between events and NaN gaps alone.
@@ -103,7 +106,7 @@ def lowpass_between_events(times_s, signal, event_indices, cutoff_hz: float, fs_
     out = flat.copy()
     uniform_pieces: dict[int, list[tuple[int, int]]] = {}  # length -> (column, start)
     for col in range(flat.shape[1]):
-        for start, stop in zip(*_runs(np.isfinite(flat[:, col]) & ~at_event), strict=True):
+        for start, stop in zip(*runs(np.isfinite(flat[:, col]) & ~at_event), strict=True):
             if irregular[stop - 1] == irregular[start]:
                 uniform_pieces.setdefault(stop - start, []).append((col, start))
             else:
@@ -121,3 +124,59 @@ def lowpass(signal, cutoff_hz: float, fs_hz: float = 100.0, order: int = 4) -> n
     the pieces and stay NaN. For pose signals, which have no events."""
     n = len(signal)
     return lowpass_between_events(np.arange(n) / fs_hz, signal, [], cutoff_hz, fs_hz, order)
+
+
+# pairs of model joints (positions in MODEL_JOINT_IDS) whose distance is a rigid bone or the torso's width
+BONES = ((0, 1), (1, 2), (3, 4), (4, 5), (0, 3), (6, 7), (0, 6), (3, 7))
+
+
+def clean_pose(pose3d: pd.DataFrame, max_bone_error: float = 0.10) -> pd.DataFrame:
+    """pose3d with bad joints removed (coordinates NaN, views 0): a joint is bad on a frame where every
+    bone (BONES) it belongs to is longer or shorter than that bone's median over the player's session by
+    more than max_bone_error (m), e.g. a joint triangulated onto the other arm or another person. On the
+    raw pose, before the low-pass, which would smear one such frame over its neighbours."""
+    out = pose3d.copy()
+    for player in out["player"].unique():
+        rows = (out["player"] == player).to_numpy()
+        joints = out.loc[rows, JOINT_XYZ].to_numpy(float).reshape(-1, len(MODEL_JOINT_IDS), 3)
+        lengths = np.stack([np.linalg.norm(joints[:, a] - joints[:, b], axis=1) for a, b in BONES], axis=1)
+        with np.errstate(invalid="ignore"):
+            off = np.abs(lengths - np.nanmedian(lengths, axis=0)) > max_bone_error
+        bad = np.stack([off[:, [k for k, bone in enumerate(BONES) if j in bone]].all(axis=1)
+                        for j in range(len(MODEL_JOINT_IDS))], axis=1)  # (T, 8)
+        bad_xyz = np.repeat(bad, 3, axis=1)
+        out.loc[rows, JOINT_XYZ] = np.where(bad_xyz, np.nan, out.loc[rows, JOINT_XYZ].to_numpy(float))
+        out.loc[rows, JOINT_VIEWS] = np.where(bad, 0, out.loc[rows, JOINT_VIEWS].to_numpy())
+    return out
+
+
+def filter_session(ball3d: pd.DataFrame, pose3d: pd.DataFrame, paddle: pd.DataFrame, cutoff_ball_hz: float,
+                   cutoff_pose_hz: float, fs_hz: float = 100.0, hit_max_distance: float = 0.3,
+                   paddle_fill_s: float = 0.25, max_bone_error: float = 0.10,
+                   ) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
+    """(ball_filtered, pose_filtered, events) of one session.
+
+    Ball samples no neighbour confirms are dropped first (drop_ball_outliers). Events are found on the
+    raw ball (a low-pass would round off the turns they are found by); the ball is then low-passed piece
+    by piece between its hits and bounces, the pose joint by joint per player after clean_pose (bad
+    joints become gaps, which stay NaN). The tables keep their columns (ball3d's and pose3d's), rows
+    sorted by time (ball: one per frame).
+    """
+    ball3d = ball3d.sort_values("time_ns").reset_index(drop=True)
+    if ball3d["time_ns"].duplicated().any():
+        raise ValueError("ball3d: more than one row on a frame; expected one row per camera frame")
+    ball3d = drop_ball_outliers(ball3d, fs_hz=fs_hz)
+    events = detect_events(ball3d, paddle, hit_max_distance, paddle_fill_s, fs_hz)
+    cuts = events.loc[events["kind"].isin(["hit", "bounce"]), "index"].to_numpy(int)
+    ball = ball3d.copy()
+    ball[["x", "y", "z"]] = lowpass_between_events(frame_seconds(ball3d["time_ns"]),
+                                                   ball3d[["x", "y", "z"]].to_numpy(float), cuts,
+                                                   cutoff_ball_hz, fs_hz)
+    pose3d = clean_pose(pose3d, max_bone_error)
+    parts = []
+    for _, rows in pose3d.sort_values(["player", "time_ns"], kind="stable").groupby("player", sort=False):
+        rows = rows.copy()
+        rows[JOINT_XYZ] = lowpass(rows[JOINT_XYZ].to_numpy(float), cutoff_pose_hz, fs_hz)
+        parts.append(rows)
+    pose = pd.concat(parts).sort_values(["time_ns", "player"], kind="stable").reset_index(drop=True)
+    return ball, pose[list(pose3d.columns)], events

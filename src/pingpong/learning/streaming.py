@@ -32,7 +32,7 @@ class StreamingPredictor:
         if frame.shape != (self.n_input,) or not np.isfinite(frame).all():
             raise ValueError(f"StreamingPredictor.step: frame {self.n_frames} of the hit has shape "
                              f"{frame.shape}, finite={np.isfinite(frame).all()}; expected {self.n_input} "
-                             "finite values (DESIGN.md input layout)")
+                             "finite values (docs/architecture.md, the input layout)")
         params, self._hidden = self.net.step(torch.from_numpy(frame)[None], self._hidden)
         self.n_frames += 1
         params = params[0].numpy()

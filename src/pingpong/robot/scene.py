@@ -10,8 +10,8 @@ the last sample of its post-hit flight (one past the strike line) or the robot's
 later. A frame's log_time in the MCAP is its camera timestamp (the filtered ball table's time_ns, the
 camera streams' log_time), so the scene plays beside the session's recordings; t = log_time - t_hit_ns
 is the episode's clock (the hit falls between frames). Frame id "table" is the dataset's frame: the table
-frame of DESIGN.md, mirrored for a 'far' hitter (curation.labels) so that the ball always flies towards
-the robot at -y.
+frame (docs/architecture.md), mirrored for a 'far' hitter (curation.labels) so that the ball always flies
+towards the robot at -y.
   - ball: the post-hit flight where a sample falls on the frame, else (up to the hit) the input
     sequence's ball; NaN where neither has one. The observed path is every ball seen up to the frame.
   - the opponent (the hitter): the 8 joints and the paddle of the input sequence, which ends at the hit,

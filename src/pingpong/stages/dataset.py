@@ -6,7 +6,7 @@ import pandas as pd
 from pingpong.common.artifacts import read_table, write_table
 from pingpong.common.seeding import rng_for
 from pingpong.curation.dataset import DATASET, build_dataset
-from pingpong.curation.segments import CURATION_RULES, SEGMENTS
+from pingpong.curation.schemas import CURATION_RULES, SEGMENTS
 from pingpong.perception.paddle import PADDLE
 from pingpong.perception.triangulation import BALL3D, POSE3D
 from pingpong.reports.tables import write_report_table

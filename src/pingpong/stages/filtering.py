@@ -1,7 +1,8 @@
 """Rule filtering: ball events found on the raw 3D ball, then ball (between events) and pose low-passed."""
 
 from pingpong.common.artifacts import read_table, write_table
-from pingpong.curation.segments import EVENTS, filter_session
+from pingpong.curation.filtering import filter_session
+from pingpong.curation.schemas import EVENTS
 from pingpong.perception.paddle import PADDLE
 from pingpong.perception.triangulation import BALL3D, POSE3D
 

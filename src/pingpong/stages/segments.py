@@ -1,7 +1,8 @@
 """Rule segments: one session's candidate hits (the paper's segments), kept or excluded with a reason."""
 
 from pingpong.common.artifacts import read_table, write_table
-from pingpong.curation.segments import EVENTS, SEGMENTS, curate_segments, find_segments
+from pingpong.curation.schemas import EVENTS, SEGMENTS
+from pingpong.curation.segments import curate_segments, find_segments
 from pingpong.perception.paddle import PADDLE
 from pingpong.perception.triangulation import BALL3D, POSE3D
 

@@ -27,13 +27,13 @@ from scipy.optimize import brentq, root
 from pingpong.frames import (
     BALL_MASS,
     BALL_RADIUS,
+    GRAVITY,
     NET_HEIGHT,
     NET_OVERHANG,
     TABLE_HALF_LENGTH,
     TABLE_HALF_WIDTH,
 )
 
-GRAVITY = 9.81  # m/s^2
 FLOOR_Z = -0.76  # floor height in the table frame (regulation table height), m
 ROLLING_ALPHA = 0.4  # 2/5: the slip vanishes at this friction ratio for a hollow sphere
 MIN_BOUNCE_VZ = 0.05  # below this rebound speed (m/s) the ball is at rest on the table

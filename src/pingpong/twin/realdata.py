@@ -13,7 +13,8 @@ import numpy as np
 import pandas as pd
 from scipy.integrate import cumulative_trapezoid
 
-from pingpong.twin.ball import GRAVITY, BallParams, bounce
+from pingpong.frames import GRAVITY
+from pingpong.twin.ball import BallParams, bounce
 
 FIT_WINDOW = 0.15  # s of flight either side of the bounce used for the in/out velocities
 CONTACT_GAP = 0.025  # s skipped next to the bounce (filter smear, contact duration)
