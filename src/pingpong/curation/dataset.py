@@ -3,7 +3,8 @@
 Layout (one row per kept hit): 'x' holds the input sequence as a flat list of n_frames * 39 float32,
 row-major (frame, value): frame k is t = k - (n_frames - 1) frames, so the last frame is the hit (t = 0),
 and the 39 values are those of docs/architecture.md (8 hitter joints, hitter's paddle position and
-rotation, ball), all mirrored so that the hit travels towards -y. `dataset_arrays` reads it back into X (N, T, 39).
+rotation, ball), all mirrored so that the hit travels towards -y. `dataset_arrays` reads it back into
+X (N, T, 39).
 
 Gaps: where curation allowed them (at most its max_*_frames per window), a missing value is the last
 value seen before it in the window (forward fill: causal, what a streaming predictor would hold too);
