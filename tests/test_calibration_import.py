@@ -8,7 +8,7 @@ from scipy.spatial.transform import Rotation
 
 from pingpong.common.camera import Camera, look_at
 from pingpong.common.rigid import apply_transform, make_transform
-from pingpong.perception.calibration_import import (
+from pingpong.io.calibration_import import (
     change_world_frame,
     export_anipose_toml,
     export_opencv_yaml,

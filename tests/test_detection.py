@@ -18,7 +18,8 @@ from hypothesis import strategies as st
 import pingpong.perception.detection as detection
 from pingpong.common.artifacts import Provenance, read_table, write_table
 from pingpong.common.seeding import rng_for
-from pingpong.perception.detection import DETECTIONS, BallDetector, detect_ball, detect_stream
+from pingpong.perception.detection import BallDetector, detect_ball, detect_stream
+from pingpong.perception.schemas import DETECTIONS
 from pingpong.twin import render
 from pingpong.twin.cameras import record_camera
 from pingpong.twin.rig import make_rig

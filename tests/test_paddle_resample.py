@@ -18,14 +18,9 @@ from pingpong.common.rigid import (
 )
 from pingpong.frames import TABLE_HALF_LENGTH, TABLE_HALF_WIDTH
 from pingpong.io.mcap_io import OptitrackWriter
-from pingpong.perception.paddle import (
-    fit_optitrack_to_table,
-    paddle_table,
-    read_motive_csv,
-    read_optitrack_poses,
-    resample_poses,
-    to_table_frame,
-)
+from pingpong.io.optitrack import read_motive_csv, read_optitrack_poses
+from pingpong.perception.calibration import fit_optitrack_to_table
+from pingpong.perception.paddle import paddle_table, resample_poses, to_table_frame
 
 OPTITRACK_NS = round(1e9 / 240)
 
@@ -173,7 +168,7 @@ def test_kabsch_with_marker_noise_within_a_millimetre():
 
 def test_fit_logs_the_residual(caplog):
     points = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
-    with caplog.at_level(logging.INFO, logger="pingpong.perception.paddle"):
+    with caplog.at_level(logging.INFO, logger="pingpong.perception.calibration"):
         _, rms = fit_optitrack_to_table(points, points + [[0.002, 0, 0], [0, 0, 0], [0, 0, 0], [0, 0, 0]])
     assert f"4 markers: RMS residual {1e3 * rms:.2f} mm" in caplog.text
 

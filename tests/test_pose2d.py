@@ -18,7 +18,6 @@ from pingpong.frames import MODEL_JOINT_IDS
 from pingpong.io.openpose_json import write_keypoints_json
 from pingpong.perception.pose2d import (
     MIN_CONFIDENCE,
-    POSE2D,
     TYPICAL_HEIGHTS,
     assign_sides,
     best_tracklets,
@@ -27,6 +26,7 @@ from pingpong.perception.pose2d import (
     model_joints,
     pose2d_table,
 )
+from pingpong.perception.schemas import POSE2D
 from pingpong.twin.openpose_sim import LIMB_SWAPS, simulate_openpose
 from pingpong.twin.players import bystander_joints
 from pingpong.twin.rig import make_rig

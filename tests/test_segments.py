@@ -14,10 +14,10 @@ import pytest
 from scipy.spatial.transform import Rotation, Slerp
 
 from pingpong.common.artifacts import Provenance, read_table, write_table
-from pingpong.curation.dataset import DATASET, build_dataset, dataset_arrays, input_sequences
+from pingpong.curation.dataset import build_dataset, dataset_arrays, input_sequences
 from pingpong.curation.filtering import filter_session
 from pingpong.curation.labels import mirror_points
-from pingpong.curation.schemas import CANDIDATE_COLUMNS, CURATION_RULES, EVENT_COLUMNS
+from pingpong.curation.schemas import CANDIDATE_COLUMNS, CURATION_RULES, DATASET, EVENT_COLUMNS
 from pingpong.curation.segments import curate_segments, find_segments
 from pingpong.curation.tracks import JOINT_XYZ
 from pingpong.frames import FRAME_NS, MODEL_JOINT_IDS, N_INPUT, ROT_COLUMNS

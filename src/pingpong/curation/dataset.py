@@ -15,15 +15,11 @@ n_filled_frames counts the frames of a hit where anything was filled.
 import numpy as np
 import pandas as pd
 
-from pingpong.common.artifacts import Schema
 from pingpong.curation.labels import mirror_frames
+from pingpong.curation.schemas import DATASET
 from pingpong.curation.splits import split_by_rally
 from pingpong.curation.tracks import JOINT_XYZ, PLAYER_END, paddle_arrays, per_player
 from pingpong.frames import N_INPUT
-
-DATASET = Schema("dataset", 1, (
-    "session", "rally", "hit", "hitter", "t_hit_ns", "hit_frame", "n_frames", "x", "n_filled_frames",
-    "a1", "a2", "b", "strike_x", "strike_z", "strike_x_labels", "region", "split", "fold"))
 
 
 def _fill(values: np.ndarray) -> np.ndarray:

@@ -8,15 +8,10 @@ left to stop on); `prediction_table` lays predictions out one row per (hit, fram
 import numpy as np
 import pandas as pd
 
-from pingpong.common.artifacts import Schema
 from pingpong.frames import N_INPUT
 from pingpong.learning.models import FRAMES_BEFORE_HIT, AnticipationNet
 from pingpong.learning.train import evaluate_loss, strike_points, train
 
-CV_RESULT = Schema("cv_result", 1)
-SELECTION = Schema("model_selection", 1)
-PREDICTIONS = Schema("predictions", 1, ("model", "session", "rally", "hit", "split", "frames_before_hit",
-                                        "a1", "a2", "b", "strike_x_pred", "strike_x", "abs_error", "region"))
 ARCHITECTURE_KEYS = ("cell", "rnn_hidden", "rnn_layers", "mlp_hidden", "mlp_layers", "dropout")
 BALL_ONLY = slice(N_INPUT - 3, N_INPUT)  # the last 3 of the 39 values are the ball
 

@@ -1,7 +1,8 @@
 """Camera calibration: intrinsics from checkerboard views, extrinsics from the ChArUco mat on the table.
 
 OpenCV does the work (findChessboardCorners + cornerSubPix, calibrateCamera, CharucoDetector,
-solvePnP); this module only chains it and reports errors per camera.
+solvePnP); this module only chains it and reports errors per camera. The calibration rule also fits
+the OptiTrack-to-table transform from the table-corner markers (optitrack_to_table).
 """
 
 import logging
@@ -9,16 +10,20 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import pandas as pd
 
-from pingpong.common.artifacts import Schema, read_json
+from pingpong.common.artifacts import read_json
 from pingpong.common.camera import Camera
 from pingpong.common.patterns import (
     CHECKERBOARD,
     TABLE_CHARUCO,
+    TABLE_MARKERS,
     Checkerboard,
     TableCharuco,
     table_pattern_object_points,
 )
+from pingpong.common.rigid import fit_rigid_transform
+from pingpong.perception.schemas import CAMERAS
 
 log = logging.getLogger(__name__)
 SUBPIX = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-4)
@@ -122,10 +127,32 @@ def camera_folder_paths(folder) -> tuple[list[Path], Path]:
     return sorted(folder.glob("intrinsics_*.png")), folder / "table.png"
 
 
-CAMERAS = Schema("cameras", 1)
 
 
 def load_cameras(path) -> tuple[list[Camera], dict]:
     """The calibrated cameras and the rest of interim/calibration/cameras.json."""
     payload = read_json(path, CAMERAS)
     return [Camera.from_dict(c) for c in payload["cameras"]], payload
+
+
+def fit_optitrack_to_table(
+    marker_positions_optitrack: np.ndarray, marker_positions_table: np.ndarray
+) -> tuple[np.ndarray, float]:
+    """T_table_from_optitrack (4x4) from K >= 3 markers measured in both frames, and its RMS residual (m)."""
+    T, rms = fit_rigid_transform(marker_positions_optitrack, marker_positions_table)
+    log.info("OptiTrack-to-table fit on %d markers: RMS residual %.2f mm",
+             len(marker_positions_table), 1e3 * rms)
+    return T, rms
+
+
+def optitrack_to_table(optitrack: dict[str, pd.DataFrame],
+                       marker_prefix: str = "table_marker_") -> tuple[np.ndarray, float]:
+    """T_table_from_optitrack from the table-corner markers (each marker's median), and its RMS (m)."""
+    names = sorted((b for b in optitrack if b.startswith(marker_prefix)),
+                   key=lambda b: int(b[len(marker_prefix):]))
+    if len(names) < 3:
+        raise ValueError(f"need >= 3 table markers '{marker_prefix}<i>' in the OptiTrack stream, "
+                         f"found {names}")
+    measured = np.array([optitrack[b][["x", "y", "z"]].median().to_numpy() for b in names])
+    known = TABLE_MARKERS[[int(b[len(marker_prefix):]) for b in names]]
+    return fit_optitrack_to_table(measured, known)

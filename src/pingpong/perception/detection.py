@@ -41,11 +41,8 @@ import cv2
 import numpy as np
 import pandas as pd
 
-from pingpong.common.artifacts import Schema
-
 log = logging.getLogger(__name__)
 
-DETECTIONS = Schema("detections", 1, ("time_ns", "u", "v", "area_px", "detected", "decode_ok"))
 
 REFERENCE_WIDTH = 1440  # px: the lab cameras' width, at which the pixel sizes of BallDetector are stated
 RIM_HUE = (5, 22)  # OpenCV hue of rim pixels that may carry part of the ball (orange blended with anything)

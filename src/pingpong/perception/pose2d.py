@@ -32,10 +32,10 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import linear_sum_assignment
 
-from pingpong.common.artifacts import Schema
 from pingpong.common.camera import Camera
 from pingpong.frames import BODY25, MODEL_JOINT_IDS, TABLE_HALF_LENGTH
 from pingpong.io.openpose_json import read_keypoints_folder
+from pingpong.perception.schemas import MODEL_JOINT_COLUMNS
 
 PLAYERS = ("near", "far")  # index 0: the player at +y, 1: at -y
 PLAYER_SIGNS = (1.0, -1.0)
@@ -64,8 +64,6 @@ LIMBS = (((J["RShoulder"], J["RElbow"], J["RWrist"]), (J["LShoulder"], J["LElbow
          ((J["RBigToe"], J["RSmallToe"], J["RHeel"]), (J["LBigToe"], J["LSmallToe"], J["LHeel"])))
 SWAP_NEIGHBOURS = (-2, -1, 1, 2)  # frames compared with to detect a swapped limb
 
-MODEL_JOINT_COLUMNS = tuple(f"j{j:02d}_{q}" for j in MODEL_JOINT_IDS for q in ("u", "v", "conf"))
-POSE2D = Schema("pose2d", 1, ("time_ns", "player", *MODEL_JOINT_COLUMNS))
 
 
 def floor_positions(keypoints: np.ndarray, camera: Camera) -> np.ndarray:

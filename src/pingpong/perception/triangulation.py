@@ -11,7 +11,6 @@ from itertools import combinations
 import numpy as np
 import pandas as pd
 
-from pingpong.common.artifacts import Schema
 from pingpong.common.camera import Camera
 from pingpong.frames import MODEL_JOINT_IDS
 
@@ -103,9 +102,6 @@ def triangulate_robust(
     return {"points": points, "n_views": used.sum(axis=1), "reproj_rms_px": rms, "used_mask": used}
 
 
-BALL3D = Schema("ball3d", 1, ("time_ns", "x", "y", "z", "n_views", "reproj_rms_px"))
-POSE3D_JOINT_COLUMNS = tuple(f"j{j:02d}_{q}" for j in MODEL_JOINT_IDS for q in ("x", "y", "z", "n"))
-POSE3D = Schema("pose3d", 1, ("time_ns", "player", *POSE3D_JOINT_COLUMNS))
 
 
 def _aligned_times(tables: list[pd.DataFrame]) -> np.ndarray:

@@ -11,7 +11,6 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from pingpong.common.artifacts import Schema
 from pingpong.frames import REGION_EDGE_X
 from pingpong.robot.control import ControlParams
 from pingpong.robot.controllers import Controller
@@ -25,11 +24,7 @@ from pingpong.robot.episode import (
 )
 from pingpong.robot.flights import HIT_KEYS, prediction_series
 from pingpong.robot.model import Robot
-
-SIM = Schema("robot_sim", 1, (
-    "controller", "session", "rally", "hit", "region", "strike_x", "strike_z", "hit_ball", "end_distance_m",
-    "anticipated", "limits_ok", "max_velocity_ratio", "max_acceleration_ratio", "min_position_margin"))
-CHOICE = Schema("robot_controller", 1)  # processed/sim/{controller}.json: the settings and the sweep
+from pingpong.robot.schemas import SIM
 
 
 @dataclass(frozen=True)

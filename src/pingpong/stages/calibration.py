@@ -1,9 +1,10 @@
 """Rule calibration: every camera's intrinsics and table-frame extrinsics, and the OptiTrack-to-table fit."""
 
 from pingpong.common.artifacts import write_json
-from pingpong.perception.calibration import CAMERAS, calibrate_camera, camera_folder_paths
-from pingpong.perception.calibration_import import read_anipose_toml, read_opencv_calibration
-from pingpong.perception.paddle import optitrack_to_table, read_optitrack_poses
+from pingpong.io.calibration_import import read_anipose_toml, read_opencv_calibration
+from pingpong.io.optitrack import read_optitrack_poses
+from pingpong.perception.calibration import calibrate_camera, camera_folder_paths, optitrack_to_table
+from pingpong.perception.schemas import CAMERAS
 
 
 def main(ctx):

@@ -5,10 +5,9 @@ import pandas as pd
 
 from pingpong.common.artifacts import read_table, write_table
 from pingpong.common.seeding import rng_for
-from pingpong.curation.dataset import DATASET, build_dataset
-from pingpong.curation.schemas import CURATION_RULES, SEGMENTS
-from pingpong.perception.paddle import PADDLE
-from pingpong.perception.triangulation import BALL3D, POSE3D
+from pingpong.curation.dataset import build_dataset
+from pingpong.curation.schemas import CURATION_RULES, DATASET, SEGMENTS
+from pingpong.perception.schemas import BALL3D, PADDLE, POSE3D
 from pingpong.reports.tables import write_report_table
 
 CAPTION = """Every candidate hit (a segment from the ball crossing the net towards a player to that player's

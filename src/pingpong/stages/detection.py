@@ -6,7 +6,8 @@ from tqdm import tqdm
 
 from pingpong.common.artifacts import write_table
 from pingpong.io.mcap_io import read_camera_stream
-from pingpong.perception.detection import DETECTIONS, BallDetector, detect_stream
+from pingpong.perception.detection import BallDetector, detect_stream
+from pingpong.perception.schemas import DETECTIONS
 
 
 def main(ctx):

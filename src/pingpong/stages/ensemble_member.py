@@ -1,9 +1,11 @@
 """Rule ensemble_member: the selected configuration refit on the training part with seed + member."""
 
 from pingpong.common.artifacts import read_json, read_table
-from pingpong.curation.dataset import DATASET, dataset_arrays
-from pingpong.learning.cv import SELECTION, refit
+from pingpong.curation.dataset import dataset_arrays
+from pingpong.curation.schemas import DATASET
+from pingpong.learning.cv import refit
 from pingpong.learning.models import save_net
+from pingpong.learning.schemas import SELECTION
 
 
 def main(ctx):

@@ -3,8 +3,7 @@
 from pingpong.common.artifacts import read_table, write_table
 from pingpong.curation.filtering import filter_session
 from pingpong.curation.schemas import EVENTS
-from pingpong.perception.paddle import PADDLE
-from pingpong.perception.triangulation import BALL3D, POSE3D
+from pingpong.perception.schemas import BALL3D, PADDLE, POSE3D
 
 
 def main(ctx):

@@ -5,9 +5,9 @@ from pathlib import Path
 
 from pingpong.common.artifacts import read_table, write_json, write_table
 from pingpong.common.seeding import rng_for
-from pingpong.curation.dataset import DATASET
-from pingpong.learning.cv import PREDICTIONS
+from pingpong.curation.schemas import DATASET
 from pingpong.learning.models import load_net
+from pingpong.learning.schemas import PREDICTIONS
 from pingpong.uncertainty.fit import estimator_hits, estimator_tables, fit_estimators, fitted_record
 from pingpong.uncertainty.registry import UncertaintySettings
 from pingpong.uncertainty.tables import FITTED, UNCERTAINTY

@@ -4,8 +4,10 @@ import numpy as np
 
 from pingpong.common.artifacts import write_table
 from pingpong.io.mcap_io import read_camera_times
+from pingpong.io.optitrack import read_optitrack_poses
 from pingpong.perception.calibration import load_cameras
-from pingpong.perception.paddle import PADDLE, paddle_table, read_optitrack_poses
+from pingpong.perception.paddle import paddle_table
+from pingpong.perception.schemas import PADDLE
 
 
 def main(ctx):

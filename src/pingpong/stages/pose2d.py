@@ -3,7 +3,8 @@
 from pingpong.common.artifacts import write_table
 from pingpong.io.mcap_io import read_camera_times
 from pingpong.perception.calibration import load_cameras
-from pingpong.perception.pose2d import POSE2D, pose2d_table
+from pingpong.perception.pose2d import pose2d_table
+from pingpong.perception.schemas import POSE2D
 
 
 def main(ctx):

@@ -7,9 +7,11 @@ hits: out of fold, each predicted by the selected configuration's model that did
 import pandas as pd
 
 from pingpong.common.artifacts import read_json, read_table, write_table
-from pingpong.curation.dataset import DATASET, dataset_arrays
-from pingpong.learning.cv import BALL_ONLY, PREDICTIONS, SELECTION, prediction_table
+from pingpong.curation.dataset import dataset_arrays
+from pingpong.curation.schemas import DATASET
+from pingpong.learning.cv import BALL_ONLY, prediction_table
 from pingpong.learning.models import load_net
+from pingpong.learning.schemas import PREDICTIONS, SELECTION
 from pingpong.learning.train import predict
 
 

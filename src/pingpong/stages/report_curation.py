@@ -4,7 +4,7 @@ import pandas as pd
 
 from pingpong.common.artifacts import read_table
 from pingpong.curation.schemas import EVENTS, SEGMENTS
-from pingpong.perception.triangulation import BALL3D
+from pingpong.perception.schemas import BALL3D
 from pingpong.reports import curation_accuracy as acc
 from pingpong.reports.tables import write_report_table
 from pingpong.twin import truth

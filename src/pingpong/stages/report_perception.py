@@ -6,9 +6,7 @@ from pingpong.common.artifacts import read_json, read_table
 from pingpong.common.camera import Camera
 from pingpong.frames import MODEL_JOINT_IDS
 from pingpong.perception.calibration import load_cameras
-from pingpong.perception.detection import DETECTIONS
-from pingpong.perception.paddle import PADDLE
-from pingpong.perception.triangulation import BALL3D, POSE3D
+from pingpong.perception.schemas import BALL3D, DETECTIONS, PADDLE, POSE3D
 from pingpong.reports import perception_accuracy as acc
 from pingpong.reports.tables import write_report_table
 from pingpong.twin import truth

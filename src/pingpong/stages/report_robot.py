@@ -5,8 +5,8 @@ from pingpong.common.artifacts import read_json, read_table
 from pingpong.common.seeding import rng_for
 from pingpong.reports.robot import limits_table, robot_table
 from pingpong.reports.tables import write_report_table
-from pingpong.robot.evaluate import CHOICE, SIM
 from pingpong.robot.model import load_robot, worst_case_accelerations
+from pingpong.robot.schemas import CHOICE, SIM
 
 CAPTION = """The simulated KUKA iiwa 14 on its Ridgeback base against every test hit's measured flight
 (mirrored towards the robot), by region of the true strike point: total hits, balls hit (the ball centre

@@ -1,7 +1,7 @@
 """Rule report_strike_error: the paper's Table 1 and the error against frames before the hit."""
 
 from pingpong.common.artifacts import read_table
-from pingpong.learning.cv import PREDICTIONS
+from pingpong.learning.schemas import PREDICTIONS
 from pingpong.reports.strike_error import error_by_frame, plot_error_vs_frames, table1, with_mean_baseline
 from pingpong.reports.tables import write_report_table
 

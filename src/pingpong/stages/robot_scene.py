@@ -7,10 +7,9 @@ from dataclasses import asdict
 from pathlib import Path
 
 from pingpong.common.artifacts import read_json, read_table
-from pingpong.curation.dataset import DATASET
-from pingpong.learning.cv import PREDICTIONS
-from pingpong.perception.triangulation import BALL3D
-from pingpong.robot.evaluate import CHOICE, SIM
+from pingpong.curation.schemas import DATASET
+from pingpong.learning.schemas import PREDICTIONS
+from pingpong.perception.schemas import BALL3D
 from pingpong.robot.model import load_robot
 from pingpong.robot.scene import (
     check_against_sim,
@@ -21,6 +20,7 @@ from pingpong.robot.scene import (
     write_scene_mcap,
 )
 from pingpong.robot.scene_figure import plot_scenes
+from pingpong.robot.schemas import CHOICE, SIM
 from pingpong.robot.simulate import final_predictions, hit_parts
 from pingpong.uncertainty.tables import UNCERTAINTY
 

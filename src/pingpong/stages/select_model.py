@@ -4,8 +4,8 @@ import numpy as np
 import pandas as pd
 
 from pingpong.common.artifacts import read_json, write_json
-from pingpong.learning.cv import CV_RESULT, SELECTION
 from pingpong.learning.grid import grid_summary, select_best
+from pingpong.learning.schemas import CV_RESULT, SELECTION
 from pingpong.reports.tables import write_report_table
 
 CAPTION = """{n_folds}-fold cross-validation of every configuration of the grid (config `training.grid`) on

@@ -5,11 +5,11 @@ the table (pingpong.robot.simulate)."""
 import logging
 
 from pingpong.common.artifacts import read_table, write_json, write_table
-from pingpong.curation.dataset import DATASET
-from pingpong.learning.cv import PREDICTIONS
-from pingpong.perception.triangulation import BALL3D
-from pingpong.robot.evaluate import CHOICE, SIM
+from pingpong.curation.schemas import DATASET
+from pingpong.learning.schemas import PREDICTIONS
+from pingpong.perception.schemas import BALL3D
 from pingpong.robot.model import load_robot
+from pingpong.robot.schemas import CHOICE, SIM
 from pingpong.robot.simulate import final_predictions, simulate_controller
 from pingpong.uncertainty.tables import UNCERTAINTY
 

@@ -1,9 +1,11 @@
 """Rule train_cv: one (configuration, fold) job of the cross-validated grid search."""
 
 from pingpong.common.artifacts import read_table, write_json
-from pingpong.curation.dataset import DATASET, dataset_arrays
-from pingpong.learning.cv import CV_RESULT, fit_fold
+from pingpong.curation.dataset import dataset_arrays
+from pingpong.curation.schemas import DATASET
+from pingpong.learning.cv import fit_fold
 from pingpong.learning.models import save_net
+from pingpong.learning.schemas import CV_RESULT
 
 
 def main(ctx):

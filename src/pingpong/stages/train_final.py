@@ -1,9 +1,11 @@
 """Rule train_final: the selected configuration refit on the whole training part; a ball-only baseline."""
 
 from pingpong.common.artifacts import read_json, read_table
-from pingpong.curation.dataset import DATASET, dataset_arrays
-from pingpong.learning.cv import BALL_ONLY, SELECTION, refit
+from pingpong.curation.dataset import dataset_arrays
+from pingpong.curation.schemas import DATASET
+from pingpong.learning.cv import BALL_ONLY, refit
 from pingpong.learning.models import save_net
+from pingpong.learning.schemas import SELECTION
 
 
 def main(ctx):

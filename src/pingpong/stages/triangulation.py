@@ -4,9 +4,8 @@ import logging
 
 from pingpong.common.artifacts import read_table, write_table
 from pingpong.perception.calibration import load_cameras
-from pingpong.perception.detection import DETECTIONS
-from pingpong.perception.pose2d import POSE2D
-from pingpong.perception.triangulation import BALL3D, POSE3D, ball3d_table, pose3d_table
+from pingpong.perception.schemas import BALL3D, DETECTIONS, POSE2D, POSE3D
+from pingpong.perception.triangulation import ball3d_table, pose3d_table
 
 
 def main(ctx):
