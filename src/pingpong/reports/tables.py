@@ -1,7 +1,5 @@
 """Report tables: one Markdown file for people and one CSV for programs, written atomically."""
 
-from pathlib import Path
-
 import pandas as pd
 
 from pingpong.common.atomic import write_text_atomic
@@ -12,11 +10,6 @@ def write_report_table(df: pd.DataFrame, md_path, csv_path, title: str, caption:
     text = f"# {title}\n\n{caption.strip()}\n\n{df.to_markdown(index=False, floatfmt='.3g')}\n"
     write_text_atomic(md_path, text)
     write_text_atomic(csv_path, df.to_csv(index=False))
-
-
-def table_paths(stem) -> tuple[Path, Path]:
-    stem = Path(stem)
-    return stem.with_suffix(".md"), stem.with_suffix(".csv")
 
 
 def threshold_row(quantity: str, value: float, unit: str, threshold: float, better: str = "below") -> dict:

@@ -110,11 +110,6 @@ def _strike_crossing(flight: Flight, side: int) -> tuple[float, float]:
     return float(p[0]), float(p[2])
 
 
-def _fly_on(p, v, w, params) -> Flight:
-    """The rest of a dead ball's flight, to the floor."""
-    return simulate_flight(p, v, w, params, t_max=2.0)
-
-
 def _intent(rng, rates: FaultRates, can_miss: bool) -> str:
     kinds = ["net", "out", "double_bounce"] + (["miss"] if can_miss else [])
     p = np.array([getattr(rates, k) for k in kinds])
