@@ -140,8 +140,8 @@ def test_error_head_learns_which_hits_are_hard(tmp_path):
     u = head.predict_error(net, X[150:], pred[150:])
     frames = np.tile(FRAMES_BEFORE_HIT, 150)
     assert (u > 0).all() and within_frames(spearman, u.ravel(), errors[150:].ravel(), frames) > 0.45
-    head.save_error_head(net, tmp_path / "head", Provenance.of("uncertainty"))
-    assert np.allclose(head.predict_error(head.load_error_head(tmp_path / "head"), X[150:], pred[150:]), u)
+    head.save(net, tmp_path / "head", Provenance.of("uncertainty"))
+    assert np.allclose(head.predict_error(head.load(tmp_path / "head"), X[150:], pred[150:]), u)
     with pytest.raises(ValueError, match="finite"):
         head.fit_error_head(X[:10], pred[:10], np.full((10, 30), np.nan), rng)
 

@@ -61,11 +61,11 @@ def predict_error(net: AnticipationNet, X: np.ndarray, strike_pred: np.ndarray) 
     return torch.exp(prediction_frames(net(head_inputs(X, strike_pred)))[..., 0]).double().numpy()
 
 
-def save_error_head(net: AnticipationNet, stem, prov: Provenance) -> None:
+def save(net: AnticipationNet, stem, prov: Provenance) -> None:
     save_model(net.state_dict(), {"architecture": net.architecture}, stem, HEAD_SCHEMA, prov)
 
 
-def load_error_head(stem) -> AnticipationNet:
+def load(stem) -> AnticipationNet:
     tensors, hparams = load_model(stem, HEAD_SCHEMA)
     net = AnticipationNet(**hparams["architecture"])
     net.load_state_dict(tensors)

@@ -6,7 +6,7 @@ calibration hits (grouped by hit, see conformal.py); the estimators are applied 
 and test hits. Every estimator scores the same point predictions (the final model's), so their
 errors are shared and only the uncertainty differs.
 
-The models that need torch or scipy are imported inside the methods that use them: the workflow
+The models that need torch or scipy are imported on first use (Learned.models): the workflow
 imports this module for the names alone (the code hash still follows those imports).
 """
 
@@ -59,35 +59,42 @@ class Conformal(Estimator):
         self.quantile = state["quantile"]
 
 
+class Learned(Estimator):
+    """An estimator with a learned model; `models()` is the module that fits it and saves and loads it
+    (`save(model, stem, prov)`, `load(stem)`), imported on first use."""
+
+    @staticmethod
+    def models():
+        raise NotImplementedError
+
+    def save_model(self, stem, prov):
+        self.models().save(self.model, stem, prov)
+
+    def restore(self, state, model_stem, fitted):
+        self.model = self.models().load(model_stem)
+
+
 @register
-class Knn(Estimator):
+class Knn(Learned):
     """The paper's k-NN regressor of the absolute error from the inputs (knn.py)."""
 
     name, paper, model_file = "knn", True, "knn"
 
-    def fit(self, hits, fitted, rng):
-        from pingpong.uncertainty.knn import fit_knn
+    @staticmethod
+    def models():
+        from pingpong.uncertainty import knn
 
+        return knn
+
+    def fit(self, hits, fitted, rng):
         train = hits.train
-        self.model = fit_knn(hits.features[train], hits.abs_error[train], self.settings.knn_k)
+        self.model = self.models().fit_knn(hits.features[train], hits.abs_error[train], self.settings.knn_k)
 
     def apply(self, hits):
-        from pingpong.uncertainty.knn import predict_knn
-
-        return Band(predict_knn(self.model, hits.features))
+        return Band(self.models().predict_knn(self.model, hits.features))
 
     def state(self):
         return {"k": self.model.k}
-
-    def save_model(self, stem, prov):
-        from pingpong.uncertainty.knn import save_knn
-
-        save_knn(self.model, stem, prov)
-
-    def restore(self, state, model_stem, fitted):
-        from pingpong.uncertainty.knn import load_knn
-
-        self.model = load_knn(model_stem)
 
 
 @register
@@ -111,35 +118,27 @@ class TimeToHit(Estimator):
 
 
 @register
-class ErrorHead(Estimator):
+class ErrorHead(Learned):
     """A small GRU that reads the inputs and the prediction and learns the training hits' out-of-fold
     errors (error_head.py)."""
 
     name, model_file = "error_head", "error_head"
 
-    def fit(self, hits, fitted, rng):
-        from pingpong.uncertainty.error_head import fit_error_head
+    @staticmethod
+    def models():
+        from pingpong.uncertainty import error_head
 
-        first_frame = hits.by_hit(hits.train)[:, 0]  # a hit's rows share its split
+        return error_head
+
+    def fit(self, hits, fitted, rng):
+        train = hits.by_hit(hits.train)[:, 0]  # a hit's rows share its split
         pred, err = hits.by_hit(hits.pred), hits.by_hit(hits.abs_error)
-        self.model = fit_error_head(hits.X[first_frame], pred[first_frame], err[first_frame], rng,
-                                    hidden=self.settings.error_head_hidden,
-                                    epochs=self.settings.error_head_epochs)
+        self.model = self.models().fit_error_head(hits.X[train], pred[train], err[train], rng,
+                                                  hidden=self.settings.error_head_hidden,
+                                                  epochs=self.settings.error_head_epochs)
 
     def apply(self, hits):
-        from pingpong.uncertainty.error_head import predict_error
-
-        return Band(predict_error(self.model, hits.X, hits.by_hit(hits.pred)).reshape(-1))
-
-    def save_model(self, stem, prov):
-        from pingpong.uncertainty.error_head import save_error_head
-
-        save_error_head(self.model, stem, prov)
-
-    def restore(self, state, model_stem, fitted):
-        from pingpong.uncertainty.error_head import load_error_head
-
-        self.model = load_error_head(model_stem)
+        return Band(self.models().predict_error(self.model, hits.X, hits.by_hit(hits.pred)).reshape(-1))
 
 
 @register
@@ -204,29 +203,30 @@ class NormalisedErrorHead(Normalised):
 
 
 @register
-class Cqr(Estimator):
+class Cqr(Learned):
     """Conformalised quantile regression (Romano et al. 2019) on quantile heads of the residual that read
     the row's features and the prediction (quantile_heads.py)."""
 
     name, model_file = "cqr", "quantile_heads"
 
     @staticmethod
+    def models():
+        from pingpong.uncertainty import quantile_heads
+
+        return quantile_heads
+
+    @staticmethod
     def _inputs(hits):
         return np.hstack([hits.features, hits.rows[PREDICTED].to_numpy(float)])
 
     def _quantiles(self, hits):
-        from pingpong.uncertainty.quantile_heads import predict_quantiles
-
-        return hits.pred[:, None] + predict_quantiles(self.model, self._inputs(hits))
+        return hits.pred[:, None] + self.models().predict_quantiles(self.model, self._inputs(hits))
 
     def fit(self, hits, fitted, rng):
-        from pingpong.uncertainty.quantile_heads import fit_quantile_heads
-
         train, cal = hits.train, hits.calibration
-        self.model = fit_quantile_heads(self._inputs(hits)[train], (hits.y - hits.pred)[train],
-                                        (self.alpha / 2, 1 - self.alpha / 2), rng,
-                                        hidden=self.settings.quantile_hidden,
-                                        epochs=self.settings.quantile_epochs)
+        self.model = self.models().fit_quantile_heads(
+            self._inputs(hits)[train], (hits.y - hits.pred)[train], (self.alpha / 2, 1 - self.alpha / 2), rng,
+            hidden=self.settings.quantile_hidden, epochs=self.settings.quantile_epochs)
         quantiles = self._quantiles(hits)
         self.quantile = conformal_quantile(cqr_scores(hits.y[cal], quantiles[cal, 0], quantiles[cal, 1]),
                                            self.alpha, hits.groups[cal])
@@ -239,12 +239,6 @@ class Cqr(Estimator):
     def state(self):
         return {"quantile": self.quantile, "levels": list(self.model.levels)}
 
-    def save_model(self, stem, prov):
-        from pingpong.uncertainty.quantile_heads import save_heads
-
-        save_heads(self.model, stem, prov)
-
     def restore(self, state, model_stem, fitted):
-        from pingpong.uncertainty.quantile_heads import load_heads
-
-        self.model, self.quantile = load_heads(model_stem), state["quantile"]
+        super().restore(state, model_stem, fitted)
+        self.quantile = state["quantile"]

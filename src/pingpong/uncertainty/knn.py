@@ -43,13 +43,13 @@ def predict_knn(model: KnnErrorRegressor, features: np.ndarray) -> np.ndarray:
 KNN_SCHEMA = Schema("knn_error_regressor", 1)
 
 
-def save_knn(model: KnnErrorRegressor, stem, prov: Provenance) -> None:
+def save(model: KnnErrorRegressor, stem, prov: Provenance) -> None:
     """The fitting rows and standardisation as safetensors, k in the JSON sidecar (no pickle)."""
     tensors = {name: torch.from_numpy(np.ascontiguousarray(getattr(model, name)))
                for name in ("mean", "std", "features", "abs_errors")}
     save_model(tensors, {"k": model.k}, stem, KNN_SCHEMA, prov)
 
 
-def load_knn(stem) -> KnnErrorRegressor:
+def load(stem) -> KnnErrorRegressor:
     tensors, hparams = load_model(stem, KNN_SCHEMA)
     return KnnErrorRegressor(**{k: v.numpy() for k, v in tensors.items()}, k=hparams["k"])

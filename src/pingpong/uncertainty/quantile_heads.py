@@ -71,13 +71,13 @@ def predict_quantiles(heads: QuantileHeads, features: np.ndarray) -> np.ndarray:
 HEADS_SCHEMA = Schema("quantile_heads", 1)
 
 
-def save_heads(heads: QuantileHeads, stem, prov: Provenance) -> None:
+def save(heads: QuantileHeads, stem, prov: Provenance) -> None:
     hparams = {"n_features": heads.mean.numel(), "hidden": heads.net[0].out_features,
                "levels": list(heads.levels)}
     save_model(heads.state_dict(), hparams, stem, HEADS_SCHEMA, prov)
 
 
-def load_heads(stem) -> QuantileHeads:
+def load(stem) -> QuantileHeads:
     tensors, hparams = load_model(stem, HEADS_SCHEMA)
     heads = QuantileHeads(hparams["n_features"], hparams["hidden"], tuple(hparams["levels"]))
     heads.load_state_dict(tensors)

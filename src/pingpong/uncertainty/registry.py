@@ -49,38 +49,14 @@ class Hits:
     def column(self, name: str) -> np.ndarray:
         return self.rows[name].to_numpy()
 
-    @property
-    def split(self) -> np.ndarray:
-        return self.column("split")
-
-    @property
-    def train(self) -> np.ndarray:
-        return self.split == "train"
-
-    @property
-    def calibration(self) -> np.ndarray:
-        return self.split == "calibration"
-
-    @property
-    def groups(self) -> np.ndarray:
-        """The hit of every row: conformal quantiles calibrate by hit (conformal.py)."""
-        return self.column("hit_index")
-
-    @property
-    def frames(self) -> np.ndarray:
-        return self.column("frames_before_hit")
-
-    @property
-    def pred(self) -> np.ndarray:
-        return self.column("strike_x_pred")
-
-    @property
-    def y(self) -> np.ndarray:
-        return self.column("strike_x")
-
-    @property
-    def abs_error(self) -> np.ndarray:
-        return self.column("abs_error")
+    split = property(lambda self: self.column("split"))
+    groups = property(lambda self: self.column("hit_index"), doc="each row's hit: conformal groups by it")
+    frames = property(lambda self: self.column("frames_before_hit"))
+    pred = property(lambda self: self.column("strike_x_pred"))
+    y = property(lambda self: self.column("strike_x"))
+    abs_error = property(lambda self: self.column("abs_error"))
+    train = property(lambda self: self.split == "train")
+    calibration = property(lambda self: self.split == "calibration")
 
     def by_hit(self, values: np.ndarray) -> np.ndarray:
         """Row values as (hits, frames)."""
