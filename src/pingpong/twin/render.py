@@ -126,10 +126,8 @@ class Poster:
     """A print on the wall y = wall_y (the far wall as seen from the other end)."""
 
     wall_y: float
-    x0: float
-    x1: float
-    z0: float
-    z1: float
+    lo: tuple[float, float]  # (x, z) of the lower left corner, m
+    hi: tuple[float, float]  # and of the upper right
     hsv: tuple[float, float, float]
 
 
@@ -176,9 +174,8 @@ def make_lab(rng: np.random.Generator) -> Lab:
     boxes, cylinders, posters = [], [], []
     for sign in (-1, 1):
         x = rng.uniform(-1.8, 1.8)
-        posters.append(Poster(sign * ROOM[1, 1], x - 0.4, x + 0.4, rng.uniform(0.6, 1.0),
-                              rng.uniform(1.6, 2.0),
-                              POSTER_HSV))
+        posters.append(Poster(sign * ROOM[1, 1], (x - 0.4, rng.uniform(0.6, 1.0)),
+                              (x + 0.4, rng.uniform(1.6, 2.0)), POSTER_HSV))
         bx, by = rng.uniform(1.0, 2.6) * rng.choice([-1, 1]), sign * rng.uniform(6.0, 7.5)
         boxes.append(Box((bx - 0.3, by - 0.25, z_floor), (bx + 0.3, by + 0.25, z_floor + 0.45),
                          CARDBOARD_HSV))
@@ -237,8 +234,9 @@ def _room_colour(o, d, lab: Lab):
     colour[floor] = hsv_to_bgr(*FLOOR_HSV) * np.where(seams[floor], 0.85, 1.0)[:, None]
     colour[ceiling] = hsv_to_bgr(*CEILING_HSV)
     for poster in lab.posters:
-        on = ((axis == 1) & (np.abs(p[:, 1] - poster.wall_y) < 1e-6) & (p[:, 0] >= poster.x0)
-              & (p[:, 0] <= poster.x1) & (p[:, 2] >= poster.z0) & (p[:, 2] <= poster.z1))
+        (x0, z0), (x1, z1) = poster.lo, poster.hi
+        on = ((axis == 1) & (np.abs(p[:, 1] - poster.wall_y) < 1e-6) & (p[:, 0] >= x0) & (p[:, 0] <= x1)
+              & (p[:, 2] >= z0) & (p[:, 2] <= z1))
         colour[on] = hsv_to_bgr(*poster.hsv)
     return s, colour
 
