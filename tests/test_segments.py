@@ -12,13 +12,14 @@ import numpy as np
 import pandas as pd
 import pytest
 from scipy.spatial.transform import Rotation, Slerp
+from workflow_util import DEFAULTS
 
 from pingpong.common.artifacts import Provenance, read_table, write_table
 from pingpong.curation.dataset import build_dataset, dataset_arrays, input_sequences
 from pingpong.curation.filtering import filter_session
 from pingpong.curation.labels import mirror_points
 from pingpong.curation.schemas import CANDIDATE_COLUMNS, CURATION_RULES, DATASET, EVENT_COLUMNS
-from pingpong.curation.segments import curate_segments, find_segments
+from pingpong.curation.segments import CurationRules, curate_segments, find_segments
 from pingpong.curation.tracks import JOINT_XYZ
 from pingpong.frames import FRAME_NS, MODEL_JOINT_IDS, N_INPUT, ROT_COLUMNS
 from pingpong.twin.session import FaultRates, ball_positions_at, simulate_session
@@ -100,7 +101,8 @@ def run():
     pose3d, paddle = _seen_pose(truth, frames, rng), _seen_paddles(truth, frames, rng)
     spoilt = _spoil(truth.shots, frames, pose3d, paddle, rng)
     ball, pose, events = filter_session(ball3d, pose3d, paddle, CUTOFF_BALL_HZ, CUTOFF_POSE_HZ)
-    segments = curate_segments(find_segments(ball, events, "s00"), ball, pose, paddle, window_frames=N_FRAMES)
+    rules = CurationRules.from_config({**DEFAULTS["curation"]["rules"], "window_frames": N_FRAMES})
+    segments = curate_segments(find_segments(ball, events, "s00"), ball, pose, paddle, rules)
     # each candidate's true shot: the one hit within a frame of it
     dt = np.abs(truth.shots["t_hit_ns"].to_numpy()[:, None] - segments["t_hit_ns"].to_numpy()[None, :])
     shot_of = np.where(dt.min(axis=0) <= FRAME_NS, dt.argmin(axis=0), -1)
@@ -238,4 +240,5 @@ def test_a_session_without_the_ball_has_no_candidates(run):
     assert events.empty and list(events.columns) == list(EVENT_COLUMNS)
     segments = find_segments(ball, events, "s00")
     assert segments.empty and list(segments.columns) == list(CANDIDATE_COLUMNS)
-    assert curate_segments(segments, ball, pose, paddle).empty
+    rules = CurationRules.from_config(DEFAULTS["curation"]["rules"])
+    assert curate_segments(segments, ball, pose, paddle, rules).empty

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import yaml
 
+from pingpong.common.config import schema_defaults
+
 ROOT = Path(__file__).resolve().parents[1]
 SNAKEMAKE = [sys.executable, "-m", "snakemake"]
 
@@ -55,3 +57,5 @@ def changed(before: dict, after: dict) -> set[str]:
 
 # the robot's description, which the robot rules take as inputs
 ROBOT_URDF, ROBOT_LIMITS = ROOT / "config/robot/iiwa14_ridgeback.urdf", ROOT / "config/robot/limits.yaml"
+# every default of config/schema.yaml: what an empty config gives, and what the typed settings are built from
+DEFAULTS = schema_defaults(ROOT / "config/schema.yaml")

@@ -4,6 +4,7 @@ Errors name the key (as a dotted path) and what was expected, before any job run
 """
 
 import copy
+from dataclasses import fields
 
 import jsonschema
 import yaml
@@ -61,3 +62,22 @@ def validate_config(config: dict, schema_path, enums: dict | None = None) -> dic
     if errors:
         raise ConfigError("invalid config:\n  " + "\n  ".join(_describe(e) for e in errors))
     return config
+
+
+class Settings:
+    """Base of the typed settings: a frozen dataclass of one validated config section, with no defaults of
+    its own (config/schema.yaml holds them, the one source)."""
+
+    @classmethod
+    def from_config(cls, section: dict):
+        names = {f.name for f in fields(cls)}
+        missing, unknown = sorted(names - set(section)), sorted(set(section) - names)
+        if missing or unknown:
+            raise ConfigError(f"{cls.__name__}: settings missing {missing}, unknown {unknown}; build them "
+                              "from a validated config section")
+        return cls(**section)
+
+
+def schema_defaults(schema_path) -> dict:
+    """The config that an empty config file gives: every default of the schema (for tests and tools)."""
+    return validate_config({}, schema_path)

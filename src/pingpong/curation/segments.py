@@ -12,9 +12,12 @@ NaN where the ball was not seen); 'index' / '*_frame' columns are row positions 
 points are in the mirrored frame (docs/architecture.md): the hitter at +y, the ball travelling towards -y.
 """
 
+from dataclasses import dataclass
+
 import numpy as np
 import pandas as pd
 
+from pingpong.common.config import Settings
 from pingpong.curation.labels import (
     labels_of_path,
     measured_strike_point,
@@ -154,12 +157,23 @@ def assign_rallies(segments: pd.DataFrame, ball: pd.DataFrame, rally_gap_s: floa
     return rally
 
 
-def curate_segments(segments: pd.DataFrame, ball: pd.DataFrame, pose: pd.DataFrame, paddle: pd.DataFrame, *,
-                    window_frames: int = 40, max_ball_missing_frames: int = 8,
-                    max_joint_missing_frames: int = 8, max_paddle_missing_frames: int = 8,
-                    min_path_points: int = 12, min_side_points: int = 4, min_joint_views: int = 2,
-                    min_strike_z: float = 0.0, rally_gap_s: float = 1.0, fs_hz: float = 100.0,
-                    ) -> pd.DataFrame:
+@dataclass(frozen=True)
+class CurationRules(Settings):
+    """The curation thresholds (config curation.rules; curate_segments says what each means)."""
+
+    window_frames: int
+    max_ball_missing_frames: int
+    max_joint_missing_frames: int
+    max_paddle_missing_frames: int
+    min_path_points: int
+    min_side_points: int
+    min_joint_views: int
+    min_strike_z: float  # m
+    rally_gap_s: float
+
+
+def curate_segments(segments: pd.DataFrame, ball: pd.DataFrame, pose: pd.DataFrame, paddle: pd.DataFrame,
+                    rules: CurationRules, fs_hz: float = 100.0) -> pd.DataFrame:
     """The candidates with rally ids, data-quality counts, labels, strike points, region and decision.
 
     Rules (CURATION_RULES order): 'net' the ball does not cross the net away from the hitter; 'out' its
@@ -180,13 +194,13 @@ def curate_segments(segments: pd.DataFrame, ball: pd.DataFrame, pose: pd.DataFra
     xyz = ball[["x", "y", "z"]].to_numpy(float)
     finite = np.isfinite(xyz).all(axis=1)
     out = segments.copy()
-    no_joint = {p: missing_joints(pose, p, time_ns, min_joint_views) for p in PLAYER_END}
+    no_joint = {p: missing_joints(pose, p, time_ns, rules.min_joint_views) for p in PLAYER_END}
     no_paddle = {p: ~np.isfinite(paddle_arrays(paddle, p, time_ns)).all(axis=1) for p in PLAYER_END}
     columns = {c: [] for c in ("ball_missing_frames", "joint_missing_frames", "paddle_missing_frames", "a1",
                                "a2", "b", "strike_x", "strike_z", "fault", "reasons")}
     for seg in segments.itertuples(index=False):
         i, hitter = seg.hit_frame, seg.hitter
-        window = slice(max(i - window_frames + 1, 0), i + 1)
+        window = slice(max(i - rules.window_frames + 1, 0), i + 1)
         counts = {"ball_missing_frames": int((~finite[window]).sum()),
                   "joint_missing_frames": int(no_joint[hitter][window].sum(axis=0).max()),
                   "paddle_missing_frames": int(no_paddle[hitter][window].sum())}
@@ -201,13 +215,13 @@ def curate_segments(segments: pd.DataFrame, ball: pd.DataFrame, pose: pd.DataFra
             "net": not seg.crosses_net,
             "out": not bounce_sides or bounce_sides[0] != OPPONENT_END[hitter],
             "double_bounce": seg.n_opponent_bounces >= 2,
-            "no_strike_line": not (seg.reaches_strike_line and strike[1] >= min_strike_z),
-            "few_points": len(path) < min_path_points or min(n_sides) < min_side_points,
+            "no_strike_line": not (seg.reaches_strike_line and strike[1] >= rules.min_strike_z),
+            "few_points": len(path) < rules.min_path_points or min(n_sides) < rules.min_side_points,
             "no_incoming": seg.start_frame < 0,
-            "short_history": i + 1 < window_frames,
-            "ball_gaps": counts["ball_missing_frames"] > max_ball_missing_frames,
-            "pose_gaps": counts["joint_missing_frames"] > max_joint_missing_frames,
-            "paddle_gaps": counts["paddle_missing_frames"] > max_paddle_missing_frames,
+            "short_history": i + 1 < rules.window_frames,
+            "ball_gaps": counts["ball_missing_frames"] > rules.max_ball_missing_frames,
+            "pose_gaps": counts["joint_missing_frames"] > rules.max_joint_missing_frames,
+            "paddle_gaps": counts["paddle_missing_frames"] > rules.max_paddle_missing_frames,
         }
         for name, count in counts.items():
             columns[name].append(count)
@@ -218,7 +232,7 @@ def curate_segments(segments: pd.DataFrame, ball: pd.DataFrame, pose: pd.DataFra
         columns["strike_x"].append(strike[0])
         columns["strike_z"].append(strike[1])
     out = out.assign(**columns)
-    out["rally"] = assign_rallies(out, ball, rally_gap_s, fs_hz)
+    out["rally"] = assign_rallies(out, ball, rules.rally_gap_s, fs_hz)
     out["strike_x_labels"] = strike_point_from_labels(out["a1"].to_numpy(float), out["a2"].to_numpy(float),
                                                       out["b"].to_numpy(float))
     out["region"] = np.where(np.isfinite(out["strike_x_labels"]), region_of(out["strike_x_labels"]), "")

@@ -5,15 +5,29 @@ whole training part for the median number of epochs its folds stopped at (no val
 left to stop on); `prediction_table` lays predictions out one row per (hit, frame before the hit).
 """
 
+from dataclasses import asdict, dataclass, replace
+
 import numpy as np
 import pandas as pd
 
+from pingpong.common.config import Settings
 from pingpong.frames import N_INPUT
 from pingpong.learning.models import FRAMES_BEFORE_HIT, AnticipationNet
 from pingpong.learning.train import evaluate_loss, strike_points, train
 
 ARCHITECTURE_KEYS = ("cell", "rnn_hidden", "rnn_layers", "mlp_hidden", "mlp_layers", "dropout")
 BALL_ONLY = slice(N_INPUT - 3, N_INPUT)  # the last 3 of the 39 values are the ball
+
+
+@dataclass(frozen=True)
+class TrainSettings(Settings):
+    """How every job of the learning stages trains (config training.*, and the device)."""
+
+    batch_size: int
+    max_epochs: int
+    patience: int
+    min_delta: float
+    device: str
 
 
 def make_net(config: dict, seed: int, n_input: int = N_INPUT) -> AnticipationNet:
@@ -23,24 +37,24 @@ def make_net(config: dict, seed: int, n_input: int = N_INPUT) -> AnticipationNet
                            velocity=bool(config.get("velocity", False)), **cfg)
 
 
-def fit_fold(X: np.ndarray, Y: np.ndarray, folds: np.ndarray, fold: int, config: dict, settings: dict,
-             seed: int) -> tuple[AnticipationNet, dict]:
+def fit_fold(X: np.ndarray, Y: np.ndarray, folds: np.ndarray, fold: int, config: dict,
+             settings: TrainSettings, seed: int) -> tuple[AnticipationNet, dict]:
     """Train `config` on the training folds but `fold`, validate on `fold`; the net and a summary."""
     val = folds == fold
     net = make_net(config, seed, X.shape[-1])
-    _, history = train(net, X[~val], Y[~val], X[val], Y[val], config["lr"], seed=seed, **settings)
+    _, history = train(net, X[~val], Y[~val], X[val], Y[val], config["lr"], seed=seed, **asdict(settings))
     best = min(history, key=lambda h: h["val_loss"])
     return net, {"config_id": config["config_id"], "fold": fold,
                  "val_loss": evaluate_loss(net, X[val], Y[val]), "best_epoch": best["epoch"],
                  "epochs_run": len(history)}
 
 
-def refit(X: np.ndarray, Y: np.ndarray, config: dict, epochs: int, settings: dict,
+def refit(X: np.ndarray, Y: np.ndarray, config: dict, epochs: int, settings: TrainSettings,
           seed: int) -> AnticipationNet:
     """The winner trained on all of X for `epochs` epochs (the training loss picks the kept weights)."""
     net = make_net(config, seed, X.shape[-1])
-    fixed = {**settings, "max_epochs": epochs, "patience": epochs + 1}
-    train(net, X, Y, X, Y, config["lr"], seed=seed, **fixed)
+    fixed = replace(settings, max_epochs=epochs, patience=epochs + 1)
+    train(net, X, Y, X, Y, config["lr"], seed=seed, **asdict(fixed))
     return net
 
 

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from pingpong.common.config import Settings
 from pingpong.frames import REGION_EDGE_X
 from pingpong.robot.control import ControlParams
 from pingpong.robot.controllers import Controller
@@ -41,14 +42,28 @@ class SimSettings:
     anticipation_z: float = 0.15  # m, height of the anticipation goals
 
 
-def sim_settings(settings: dict, anticipation_z: float) -> SimSettings:
-    """SimSettings from the config's robot settings (simulate_robot and robot_scene share it)."""
+@dataclass(frozen=True)
+class RobotSettings(Settings):
+    """The robot rules' settings (config robot.*; the schema says what each means)."""
+
+    anticipation_start_frame: int
+    servo_start_frame: int
+    servo_period_frames: int
+    latency_frames: int
+    control_dt_s: float
+    alpha_grid: list[float]
+    confidence_quantiles: list[float]
+    max_flight_s: float
+
+
+def sim_settings(settings: RobotSettings, anticipation_z: float) -> SimSettings:
+    """SimSettings from the robot settings (simulate_robot and robot_scene share it)."""
     return SimSettings(
-        EpisodeParams(anticipation_start_frame=settings["anticipation_start_frame"],
-                      servo_start_frame=settings["servo_start_frame"],
-                      servo_period_frames=settings["servo_period_frames"],
-                      latency_frames=settings["latency_frames"],
-                      control=ControlParams(dt=settings["control_dt_s"])),
+        EpisodeParams(anticipation_start_frame=settings.anticipation_start_frame,
+                      servo_start_frame=settings.servo_start_frame,
+                      servo_period_frames=settings.servo_period_frames,
+                      latency_frames=settings.latency_frames,
+                      control=ControlParams(dt=settings.control_dt_s)),
         anticipation_z=float(anticipation_z))
 
 

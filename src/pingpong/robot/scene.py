@@ -52,7 +52,7 @@ from pingpong.frames import (
 )
 from pingpong.io.mcap_io import SceneWriter
 from pingpong.robot.controllers import Controller
-from pingpong.robot.evaluate import Prediction, SimSettings, sim_settings, simulate_hit
+from pingpong.robot.evaluate import Prediction, RobotSettings, SimSettings, sim_settings, simulate_hit
 from pingpong.robot.flights import prediction_series
 from pingpong.robot.model import PADDLE_RADIUS, Robot
 
@@ -173,7 +173,7 @@ def episode_scene(robot: Robot, hit, camera_ns: np.ndarray, flight: tuple[np.nda
 
 def controller_scenes(robot: Robot, hits: pd.DataFrame, camera_ns: dict[str, np.ndarray], flights: list,
                       predictions: list[Prediction], labels: list[np.ndarray], choice: dict,
-                      settings: dict) -> list[SceneEpisode]:
+                      settings: RobotSettings) -> list[SceneEpisode]:
     """episode_scene of every row of `hits` under the controller of a processed/sim/{controller}.json
     (choice); camera_ns: each session's frame times; settings: the rule's robot settings."""
     controller = Controller.from_choice(choice)

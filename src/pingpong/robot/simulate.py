@@ -5,7 +5,7 @@ import numpy as np
 import pandas as pd
 
 from pingpong.robot.controllers import CONTROLLERS
-from pingpong.robot.evaluate import hit_predictions, sim_settings, simulate_hits
+from pingpong.robot.evaluate import RobotSettings, hit_predictions, sim_settings, simulate_hits
 from pingpong.robot.flights import hit_flights
 from pingpong.robot.model import Robot
 from pingpong.robot.sweep import choose_controller
@@ -27,18 +27,18 @@ def hit_parts(hits: pd.DataFrame, balls: dict, predictions: pd.DataFrame, uncert
 
 def simulate_controller(name: str, robot: Robot, dataset: pd.DataFrame, predictions: pd.DataFrame,
                         balls: dict, uncertainty: pd.DataFrame | None,
-                        cfg: dict) -> tuple[pd.DataFrame, dict]:
+                        cfg: RobotSettings) -> tuple[pd.DataFrame, dict]:
     """(SIM table of the test hits, the CHOICE record: the chosen settings and the calibration sweep).
 
     dataset: DATASET rows; predictions: the final model's; balls: session -> filtered ball table;
-    uncertainty: the configured estimator's table (None: no estimator); cfg: the rule's robot settings.
+    uncertainty: the configured estimator's table (None: no estimator).
     """
     settings = sim_settings(cfg, dataset.loc[dataset["split"] == "train", "strike_z"].median())
     parts = {split: hit_parts(dataset[dataset["split"] == split].reset_index(drop=True), balls, predictions,
-                              uncertainty, name, cfg["max_flight_s"])
+                              uncertainty, name, cfg.max_flight_s)
              for split in ("calibration", "test")}
-    controller, sweep = choose_controller(name, robot, *parts["calibration"], settings, cfg["alpha_grid"],
-                                          cfg["confidence_quantiles"])
+    controller, sweep = choose_controller(name, robot, *parts["calibration"], settings, cfg.alpha_grid,
+                                          cfg.confidence_quantiles)
     sim = simulate_hits(robot, *parts["test"], controller, settings)
     choice = {**controller.to_choice(), "anticipation_z_m": settings.anticipation_z,
               "n_calibration_hits": len(parts["calibration"][0]),

@@ -3,7 +3,7 @@
 from pingpong.common.artifacts import read_json, read_table
 from pingpong.curation.dataset import dataset_arrays
 from pingpong.curation.schemas import DATASET
-from pingpong.learning.cv import refit
+from pingpong.learning.cv import TrainSettings, refit
 from pingpong.learning.models import save_net
 from pingpong.learning.schemas import SELECTION
 
@@ -14,6 +14,7 @@ def main(ctx):
     dataset = read_table(ctx.input.dataset, DATASET)
     X, Y = dataset_arrays(dataset[dataset["split"] == "train"])
     seed = p["seed"] + p["member"]
-    net = refit(X, Y, selection["config"], selection["epochs"], p["settings"], seed)
+    settings = TrainSettings.from_config(p["settings"])
+    net = refit(X, Y, selection["config"], selection["epochs"], settings, seed)
     save_net(net, {**selection["config"], "epochs": selection["epochs"], "member": p["member"], "seed": seed},
              ctx.output.model.removesuffix(".safetensors"), ctx.provenance())

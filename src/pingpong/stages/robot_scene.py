@@ -10,6 +10,7 @@ from pingpong.common.artifacts import read_json, read_table
 from pingpong.curation.schemas import DATASET
 from pingpong.learning.schemas import PREDICTIONS
 from pingpong.perception.schemas import BALL3D
+from pingpong.robot.evaluate import RobotSettings
 from pingpong.robot.model import load_robot
 from pingpong.robot.scene import (
     check_against_sim,
@@ -28,7 +29,7 @@ log = logging.getLogger("robot_scene")
 
 
 def main(ctx):
-    p, cfg, i = ctx.params, ctx.params["settings"], ctx.input
+    p, cfg, i = ctx.params, RobotSettings.from_config(ctx.params["settings"]), ctx.input
     hits = scene_hits(read_table(i.dataset, DATASET), p["n_hits"])
     predictions = final_predictions(read_table(i.predictions, PREDICTIONS))
     uncertainty = read_table(i.uncertainty[0], UNCERTAINTY) if i.get("uncertainty") else None
@@ -44,7 +45,7 @@ def main(ctx):
     camera_ns = {s: ball["time_ns"].to_numpy() for s, ball in balls.items()}
     scenes = []
     for name, sim_path, choice_path in zip(p["controllers"], i.sims, i.choices, strict=True):
-        _, flights, hit_preds = hit_parts(hits, balls, predictions, uncertainty, name, cfg["max_flight_s"])
+        _, flights, hit_preds = hit_parts(hits, balls, predictions, uncertainty, name, cfg.max_flight_s)
         episodes = controller_scenes(robot, hits, camera_ns, flights, hit_preds, labels,
                                      read_json(choice_path, CHOICE), cfg)
         sim = read_table(sim_path, SIM)

@@ -8,6 +8,7 @@ from pingpong.common.artifacts import read_table, write_json, write_table
 from pingpong.curation.schemas import DATASET
 from pingpong.learning.schemas import PREDICTIONS
 from pingpong.perception.schemas import BALL3D
+from pingpong.robot.evaluate import RobotSettings
 from pingpong.robot.model import load_robot
 from pingpong.robot.schemas import CHOICE, SIM
 from pingpong.robot.simulate import final_predictions, simulate_controller
@@ -24,7 +25,7 @@ def main(ctx):
              for s, f in zip(p["sessions"], i.balls, strict=True)}
     sim, choice = simulate_controller(p["controller"], load_robot(i.urdf, i.limits), dataset,
                                       final_predictions(read_table(i.predictions, PREDICTIONS)), balls,
-                                      uncertainty, p["settings"])
+                                      uncertainty, RobotSettings.from_config(p["settings"]))
     log.info("controller %s on %d test hits: %d hits; limits kept in %d", choice["controller"], len(sim),
              sim["hit_ball"].sum(), sim["limits_ok"].sum())
     prov = ctx.provenance()

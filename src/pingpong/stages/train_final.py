@@ -3,7 +3,7 @@
 from pingpong.common.artifacts import read_json, read_table
 from pingpong.curation.dataset import dataset_arrays
 from pingpong.curation.schemas import DATASET
-from pingpong.learning.cv import BALL_ONLY, refit
+from pingpong.learning.cv import BALL_ONLY, TrainSettings, refit
 from pingpong.learning.models import save_net
 from pingpong.learning.schemas import SELECTION
 
@@ -15,6 +15,7 @@ def main(ctx):
     X, Y = dataset_arrays(dataset[dataset["split"] == "train"])
     if p["ball_only"]:  # the baseline: the same model and training, fed the ball alone
         X = X[..., BALL_ONLY]
-    net = refit(X, Y, selection["config"], selection["epochs"], p["settings"], p["seed"])
+    settings = TrainSettings.from_config(p["settings"])
+    net = refit(X, Y, selection["config"], selection["epochs"], settings, p["seed"])
     save_net(net, {**selection["config"], "epochs": selection["epochs"], "ball_only": p["ball_only"]},
              ctx.output.model.removesuffix(".safetensors"), ctx.provenance())

@@ -8,7 +8,7 @@ before it, e.g. normalised conformal on the k-NN error) and the order of every t
 The workflow, the config's enums, the reports and the robot read the names from here, so adding an
 estimator touches one module: `pingpong.uncertainty.estimators` (docs/architecture.md, "Registries").
 
-Light on purpose (numpy and pandas only): the Snakefile imports it.
+Light on purpose (numpy, pandas and the config's helpers only): the Snakefile imports it.
 """
 
 from dataclasses import dataclass
@@ -17,9 +17,11 @@ from typing import ClassVar
 import numpy as np
 import pandas as pd
 
+from pingpong.common.config import Settings
+
 
 @dataclass(frozen=True)
-class UncertaintySettings:
+class UncertaintySettings(Settings):
     """The config's `uncertainty` section, typed (defaults: config/schema.yaml only)."""
 
     ensemble_size: int
@@ -29,10 +31,6 @@ class UncertaintySettings:
     quantile_epochs: int
     error_head_hidden: int
     error_head_epochs: int
-
-    @classmethod
-    def from_config(cls, section: dict) -> "UncertaintySettings":
-        return cls(**section)
 
 
 @dataclass(frozen=True, eq=False)
