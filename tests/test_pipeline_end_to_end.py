@@ -9,6 +9,7 @@ import cv2
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import TINY_CONFIG
 from workflow_util import snakemake
 
 from pingpong.frames import N_INPUT
@@ -99,7 +100,7 @@ def test_robot_simulates_every_test_hit_per_controller_within_the_limits(tiny_ru
 
 
 def test_html_report_shows_every_stage_table_and_figure(tiny_run):
-    snakemake(tiny_run, "--report", "reports/report.html")
+    snakemake(tiny_run, "--report", "reports/report.html", configfile=TINY_CONFIG)
     report = (tiny_run / "reports/report.html").read_text()
     for table in ("twin_vs_real", "perception_accuracy", "curation", "cv_results", "strike_error",
                   "uncertainty", "robot", "robot_limits"):
@@ -117,7 +118,7 @@ def test_html_report_opens_in_a_headless_browser(tiny_run, tmp_path):
         pytest.skip("no headless browser (Debian package chromium; .ci/run installs it)")
     report = tiny_run / "reports/report.html"
     if not report.exists():
-        snakemake(tiny_run, "--report", "reports/report.html")
+        snakemake(tiny_run, "--report", "reports/report.html", configfile=TINY_CONFIG)
     shot = tmp_path / "report.png"
     subprocess.run([browser, "--headless", "--no-sandbox", "--disable-gpu", "--window-size=1280,900",
                     "--virtual-time-budget=5000", f"--screenshot={shot}", report.as_uri()],

@@ -4,8 +4,8 @@ from the config and every stage's thread counts are fixed (`pingpong.common.scri
 import hashlib
 
 import pytest
-from conftest import TINY_RUN
-from workflow_util import copy_checkout, snakemake, write_config
+from conftest import TINY_CONFIG
+from workflow_util import copy_checkout, snakemake
 
 DATA_FOLDERS = ("raw", "interim", "processed", "reports")
 
@@ -20,8 +20,7 @@ def content_hashes(root) -> dict[str, str]:
 @pytest.mark.slow
 def test_two_clean_runs_give_identical_artifacts(tiny_run, tmp_path):
     second = copy_checkout(tmp_path)
-    write_config(second, TINY_RUN)
-    snakemake(second)  # rule all, from clean, in another folder
+    snakemake(second, configfile=TINY_CONFIG)  # rule all, from clean, in another folder
     again, first = content_hashes(second), content_hashes(tiny_run)
     assert {p.split("/")[0] for p in again} == set(DATA_FOLDERS)
     assert any(p.endswith(".safetensors") for p in again)  # trained models are among them
