@@ -11,7 +11,7 @@ min_version("9.0")
 sys.path.insert(0, str(Path(workflow.basedir) / "src"))
 
 from pingpong.common.config import validate_config
-from pingpong.uncertainty.tables import ESTIMATORS
+from pingpong.uncertainty.names import ESTIMATORS
 
 
 configfile: "config/config.yaml"

@@ -128,7 +128,7 @@ def test_the_workflow_refuses_a_rule_with_another_rules_hash(tmp_path):
 
 
 def test_registered_names_are_the_config_enum():
-    from pingpong.uncertainty.tables import ESTIMATORS
+    from pingpong.uncertainty.names import ESTIMATORS
 
     enums = {"robot.estimator": [*ESTIMATORS, None]}
     assert validate_config({"robot": {"estimator": "cqr"}}, SCHEMA, enums)["robot"]["estimator"] == "cqr"

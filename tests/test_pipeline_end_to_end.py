@@ -57,7 +57,7 @@ def test_learning_outputs_predictions_for_every_held_out_hit_and_frame(tiny_run)
 
 
 def test_uncertainty_tables_for_every_estimator_held_out_hit_and_frame(tiny_run):
-    from pingpong.uncertainty.tables import ESTIMATORS
+    from pingpong.uncertainty.names import ESTIMATORS
 
     dataset = pd.read_parquet(tiny_run / "processed/dataset.parquet")
     held_out = (dataset["split"] != "train").sum()

@@ -28,9 +28,9 @@ from pingpong.uncertainty.fit import (
 )
 from pingpong.uncertainty.knn import fit_knn, predict_knn
 from pingpong.uncertainty.metrics import ause, interval_metrics, sparsification, spearman, within_frames
+from pingpong.uncertainty.names import ESTIMATORS
 from pingpong.uncertainty.quantile_heads import fit_quantile_heads, predict_quantiles
 from pingpong.uncertainty.registry import REGISTRY, Band, Estimator, Hits, UncertaintySettings, register
-from pingpong.uncertainty.tables import ESTIMATORS
 from pingpong.uncertainty.time_to_hit import fit_trend, trend
 
 ALPHA = 0.1

@@ -1,6 +1,6 @@
 # Uncertainty: an ensemble of the selected configuration (one job per member), every estimator fitted
 # and applied to the calibration and test hits, and the report.
-from pingpong.uncertainty.tables import ESTIMATORS, MODEL_FILES  # the registry's names
+from pingpong.uncertainty.names import ESTIMATORS, MODEL_FILES  # the registry's names
 
 UNCERTAINTY = config["uncertainty"]
 MEMBERS = range(UNCERTAINTY["ensemble_size"])

@@ -16,7 +16,7 @@ from pingpong.uncertainty.metrics import (  # noqa: E402
     spearman,
     within_frames,
 )
-from pingpong.uncertainty.tables import PAPER_ESTIMATORS  # noqa: E402
+from pingpong.uncertainty.names import PAPER_ESTIMATORS  # noqa: E402
 
 SCATTER_ESTIMATORS = ("ensemble", "knn", "conformal", "cqr")  # the paper's three, and CQR beside them
 LAST_FRAME = 1  # the paper's "frame 0" (the hit) is never predicted; 1 frame before it is the latest

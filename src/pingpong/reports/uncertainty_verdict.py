@@ -16,7 +16,7 @@ import pandas as pd
 from scipy import stats
 
 from pingpong.uncertainty.metrics import ause, interval_metrics
-from pingpong.uncertainty.tables import HIT_KEYS
+from pingpong.uncertainty.schemas import HIT_KEYS
 
 BASELINES = ("ensemble", "knn", "conformal")  # the paper's three that the issue asks to beat
 PAPER_WIDTH_CM = 130.0  # the paper's mean 90% conformal interval

@@ -10,7 +10,7 @@ from pingpong.learning.models import load_net
 from pingpong.learning.schemas import PREDICTIONS
 from pingpong.uncertainty.fit import estimator_hits, estimator_tables, fit_estimators, fitted_record
 from pingpong.uncertainty.registry import UncertaintySettings
-from pingpong.uncertainty.tables import FITTED, UNCERTAINTY
+from pingpong.uncertainty.schemas import FITTED, UNCERTAINTY
 
 
 def _stems(paths) -> dict[str, str]:

@@ -21,7 +21,7 @@ from pingpong.reports.uncertainty_verdict import (
     verdict_text,
     window_text,
 )
-from pingpong.uncertainty.tables import FITTED, UNCERTAINTY
+from pingpong.uncertainty.schemas import FITTED, UNCERTAINTY
 
 CAPTION = """Uncertainty of the strike-point prediction (final model) on the test hits, at {coverage:.0%}
 nominal coverage. Spearman: rank correlation of the uncertainty with the absolute error, pooled over the 30

@@ -23,7 +23,7 @@ from pingpong.robot.scene import (
 from pingpong.robot.scene_figure import plot_scenes
 from pingpong.robot.schemas import CHOICE, SIM
 from pingpong.robot.simulate import final_predictions, hit_parts
-from pingpong.uncertainty.tables import UNCERTAINTY
+from pingpong.uncertainty.schemas import UNCERTAINTY
 
 log = logging.getLogger("robot_scene")
 

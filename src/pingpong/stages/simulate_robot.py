@@ -12,7 +12,7 @@ from pingpong.robot.evaluate import RobotSettings
 from pingpong.robot.model import load_robot
 from pingpong.robot.schemas import CHOICE, SIM
 from pingpong.robot.simulate import final_predictions, simulate_controller
-from pingpong.uncertainty.tables import UNCERTAINTY
+from pingpong.uncertainty.schemas import UNCERTAINTY
 
 log = logging.getLogger("simulate_robot")
 

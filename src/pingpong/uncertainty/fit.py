@@ -11,7 +11,7 @@ from pingpong.uncertainty.estimators import PREDICTED
 from pingpong.uncertainty.features import frame_features
 from pingpong.uncertainty.metrics import spearman, within_frames
 from pingpong.uncertainty.registry import REGISTRY, Estimator, Hits, UncertaintySettings
-from pingpong.uncertainty.tables import HIT_KEYS
+from pingpong.uncertainty.schemas import HIT_KEYS
 
 TABLE_COLUMNS = [*HIT_KEYS, "split", "frames_before_hit", "strike_x", "strike_x_pred", "abs_error"]
 

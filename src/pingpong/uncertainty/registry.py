@@ -5,8 +5,9 @@ An estimator is fitted on the training hits (models that learn errors) and the c
 processed/uncertainty/estimators.json under its name) and, where it learns a model, that model as
 safetensors (`model_file`). Registration order is fitting order (an estimator may build on those
 before it, e.g. normalised conformal on the k-NN error) and the order of every table and report.
-The workflow, the config's enums, the reports and the robot read the names from here, so adding an
-estimator touches one module: `pingpong.uncertainty.estimators` (docs/architecture.md, "Registries").
+The workflow, the config's enums, the reports and the robot read the names from here (through
+`pingpong.uncertainty.names`), so adding an estimator touches one module: `pingpong.uncertainty.estimators`
+(docs/architecture.md, "Registries").
 
 Light on purpose (numpy, pandas and the config's helpers only): the Snakefile imports it.
 """

@@ -1,13 +1,7 @@
-"""The estimators' names (from the registry) and the layout of their output tables (light: the workflow
-imports it)."""
+"""The uncertainty stages' table layouts (light: readers such as the robot do not hash the estimators)."""
 
 from pingpong.common.artifacts import Schema
-from pingpong.uncertainty import estimators as _registered  # noqa: F401  (fills the registry)
-from pingpong.uncertainty.registry import REGISTRY
 
-ESTIMATORS = tuple(REGISTRY)  # registration order: fitting, tables and reports
-PAPER_ESTIMATORS = tuple(name for name, cls in REGISTRY.items() if cls.paper)
-MODEL_FILES = tuple(cls.model_file for cls in REGISTRY.values() if cls.model_file)
 HIT_KEYS = ["session", "rally", "hit"]
 # one row per calibration or test hit and frame before the hit; uncertainty, lower, upper in m
 # (lower/upper NaN where the estimator gives no interval)
