@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pingpong.common.camera import Camera, look_at
-from pingpong.perception.triangulation import triangulate_dlt, triangulate_robust
+from pingpong.perception.triangulation import reprojection_gate_px, triangulate_dlt, triangulate_robust
 
 
 def lab_cameras(rng: np.random.Generator, n: int = 4) -> list[Camera]:
@@ -163,3 +163,31 @@ def test_rejects_mismatched_cameras():
     cameras = lab_cameras(rng, 3)
     with pytest.raises(ValueError, match="3 cameras"):
         triangulate_robust(cameras, np.zeros((5, 4, 2)), max_reproj_px=1.0)
+
+
+def test_the_gate_scales_with_the_image():
+    """At 1920x1080 OpenPose's joints scatter by pixels (here 2.5 px per axis, ~0.6 px at 480x360): the
+    share-of-diagonal gate keeps nearly every view, a fixed 3 px gate (the 480x360 value) drops many."""
+    rng = np.random.default_rng(4)
+    cameras, points = lab_cameras(rng), lab_points(rng, 2000)
+    gate = reprojection_gate_px(cameras, 0.005)
+    assert gate == pytest.approx(0.005 * np.hypot(1920, 1080)) and gate[0] == pytest.approx(11.01, abs=0.01)
+    small = Camera("small", np.eye(3), np.zeros(5), np.eye(3), np.zeros(3), 480, 360)
+    assert reprojection_gate_px([small], 0.005)[0] == 3.0  # the default run's former fixed gate, exactly
+    pixels = observe(cameras, points) + rng.normal(0, 2.5, size=(len(points), len(cameras), 2))
+    scaled, fixed = (triangulate_robust(cameras, pixels, g) for g in (gate, 3.0))
+    all_views = [(out["n_views"] == 4).mean() for out in (scaled, fixed)]
+    assert all_views[0] > 0.97 and all_views[1] < 0.8
+    errors = [np.nanmedian(np.linalg.norm(out["points"] - points, axis=1)) for out in (scaled, fixed)]
+    assert np.isfinite(scaled["points"]).all() and errors[0] <= errors[1]  # more views, no worse
+
+
+def test_a_gate_per_camera_applies_to_its_own_views():
+    rng = np.random.default_rng(5)
+    cameras, points = lab_cameras(rng), lab_points(rng, 300)
+    pixels = observe(cameras, points) + rng.normal(0, 0.1, size=(300, 4, 2))
+    ones = triangulate_robust(cameras, pixels, np.ones(4))
+    for key, value in triangulate_robust(cameras, pixels, 1.0).items():
+        np.testing.assert_array_equal(value, ones[key])  # equal gates: the scalar gate
+    closed = triangulate_robust(cameras, pixels, np.array([1.0, 1.0, 1e-9, 1.0]))
+    assert ones["used_mask"].all() and not closed["used_mask"][:, 2].any() and (closed["n_views"] == 3).all()

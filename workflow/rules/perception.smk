@@ -97,7 +97,7 @@ rule triangulation:
         pose3d="interim/pose3d/{session}.parquet",
     params:
         cams=lambda wc: session_cameras(wc.session),
-        max_reproj_px=PERCEPTION["max_reproj_px"],
+        max_reproj_share=PERCEPTION["max_reproj_share"],
         min_views=PERCEPTION["min_views"],
         code=code("triangulation"),
     log:
