@@ -27,11 +27,27 @@ def cameras():
     return config["lab"]["cameras"]
 
 
+# the camera file formats a lab may hand over (pingpong.io.camera_streams detects which is which)
+CAMERA_SUFFIXES = (".mcap", ".mp4", ".avi", ".mkv", ".mov")
+
+
+def camera_file(session, cam):
+    """A camera's recording: raw/sessions/{session}/{cam}.mcap (the twin's; MCAP or a ROS 2 bag), or a
+    video file; more than one is an error naming them."""
+    if config["source"] == "twin":
+        return f"raw/sessions/{session}/{cam}.mcap"
+    found = [f"raw/sessions/{session}/{cam}{s}" for s in CAMERA_SUFFIXES
+             if Path(f"raw/sessions/{session}/{cam}{s}").exists()]
+    if len(found) > 1:
+        raise WorkflowError(f"session {session}, {cam}: several recordings {found}; keep one")
+    return found[0] if found else f"raw/sessions/{session}/{cam}.mcap"
+
+
 def session_cameras(session):
     """The cameras recorded in a session: a lab session may lack one (>= 2 must remain)."""
     if config["source"] == "twin":
         return cameras()
-    present = [c for c in cameras() if Path(f"raw/sessions/{session}/{c}.mcap").exists()]
+    present = [c for c in cameras() if Path(camera_file(session, c)).exists()]
     missing = sorted(set(cameras()) - set(present))
     if len(present) < 2:
         raise WorkflowError(f"session {session}: only {present} of the cameras {cameras()} have a stream "
@@ -55,7 +71,7 @@ def raw_outputs():
     """Everything under raw/ that the later stages read (written by the twin or by a lab)."""
     return (
         expand("raw/calibration/{cam}/table.png", cam=cameras())
-        + [f"raw/sessions/{s}/{c}.mcap" for s in sessions() for c in session_cameras(s)]
+        + [camera_file(s, c) for s in sessions() for c in session_cameras(s)]
         + [f"raw/sessions/{s}/openpose/{c}" for s in sessions() for c in session_cameras(s)]
         + [optitrack_path(s) for s in sessions()]
     )
@@ -84,7 +100,7 @@ def twin_reports():
 TWIN_ONLY = config["source"] == "twin"  # the twin's truth is what those tables measure against
 REPORT_TABLES = {
     "twin": ["twin_vs_real"] if TWIN_ONLY else [],
-    "perception": ["perception_accuracy"] if TWIN_ONLY else [],
+    "perception": ["sync", *(["perception_accuracy"] if TWIN_ONLY else [])],
     "curation": ["curation", *(["curation_accuracy"] if TWIN_ONLY else [])],
     "learning": ["cv_results", "strike_error", "strike_error_by_frame"],
     "uncertainty": ["uncertainty", "uncertainty_verdict", "uncertainty_by_frame"],

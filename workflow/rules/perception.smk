@@ -28,7 +28,7 @@ rule paddle:
     input:
         cameras="interim/calibration/cameras.json",
         optitrack=lambda wc: optitrack_path(wc.session),
-        clock=lambda wc: f"raw/sessions/{wc.session}/{session_cameras(wc.session)[0]}.mcap",
+        clock=lambda wc: camera_file(wc.session, session_cameras(wc.session)[0]),
     output:
         paddle="interim/paddle/{session}.parquet",
     params:
@@ -47,7 +47,7 @@ rule paddle:
 
 rule detection:
     input:
-        mcap="raw/sessions/{session}/{cam}.mcap",
+        mcap=lambda wc: camera_file(wc.session, wc.cam),
     output:
         detections="interim/detections/{session}/{cam}.parquet",
     params:
@@ -66,7 +66,7 @@ rule detection:
 rule pose2d:
     input:
         cameras="interim/calibration/cameras.json",
-        mcap="raw/sessions/{session}/{cam}.mcap",
+        mcap=lambda wc: camera_file(wc.session, wc.cam),
         openpose="raw/sessions/{session}/openpose/{cam}",
     output:
         pose2d="interim/pose2d/{session}/{cam}.parquet",
@@ -83,9 +83,45 @@ rule pose2d:
         STAGE_SCRIPT
 
 
+rule sync_check:
+    input:
+        streams=lambda wc: [camera_file(wc.session, c) for c in session_cameras(wc.session)],
+    output:
+        sync="interim/sync/{session}.parquet",
+    params:
+        session="{session}",
+        cams=lambda wc: session_cameras(wc.session),
+        strict=PERCEPTION["strict_mcap"],
+        code=code("sync_check"),
+    log:
+        "logs/sync_check/{session}.log",
+    conda:
+        CONDA_ENV
+    script:
+        STAGE_SCRIPT
+
+
+rule report_sync:
+    input:
+        syncs=expand("interim/sync/{session}.parquet", session=sessions()),
+    output:
+        md="reports/tables/sync.md",
+        csv="reports/tables/sync.csv",
+    params:
+        sessions=sessions(),
+        code=code("report_sync"),
+    log:
+        "logs/report_sync.log",
+    conda:
+        CONDA_ENV
+    script:
+        STAGE_SCRIPT
+
+
 rule triangulation:
     input:
         cameras="interim/calibration/cameras.json",
+        sync="interim/sync/{session}.parquet",  # the cameras share a clock (else sync_check stopped)
         detections=lambda wc: expand(
             "interim/detections/{session}/{cam}.parquet", session=wc.session, cam=session_cameras(wc.session)
         ),

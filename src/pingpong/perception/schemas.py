@@ -11,3 +11,5 @@ POSE2D = Schema("pose2d", 1, ("time_ns", "player", *MODEL_JOINT_COLUMNS))
 BALL3D = Schema("ball3d", 1, ("time_ns", "x", "y", "z", "n_views", "reproj_rms_px"))
 POSE3D_JOINT_COLUMNS = tuple(f"j{j:02d}_{q}" for j in MODEL_JOINT_IDS for q in ("x", "y", "z", "n"))
 POSE3D = Schema("pose3d", 1, ("time_ns", "player", *POSE3D_JOINT_COLUMNS))
+SYNC = Schema("camera_sync", 1, ("camera", "frames", "rate_hz", "first_ns", "last_ns", "dropped_frames",
+                                 "non_increasing"))  # interim/sync/{session}.parquet, one row per camera
