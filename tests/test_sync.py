@@ -10,6 +10,7 @@ from pingpong.perception.sync import CameraSyncError, camera_sync_row, check_syn
 
 FRAME_NS = 10_000_000
 START = 1_700_000_000_000_000_000
+HEADER = r"session s02: the cameras do not share a clock[\s\S]*"
 
 
 def clock(n=500, start=START, period=FRAME_NS) -> np.ndarray:
@@ -35,12 +36,12 @@ def test_drops_are_counted_and_warned_about(caplog):
     (clock(period=FRAME_NS * 100 // 101), r"cam1: 101.00 Hz, cam0 100.00 Hz"),
     (clock(start=START + 3 * FRAME_NS), r"cam1: first frame \+30.0 ms from cam0's"),
     (clock(n=480), r"cam1: 480 frames, cam0 500"),
-    (np.concatenate([clock(250), clock(250, START + 251 * FRAME_NS)]), r"cam1: frame 250 at \d+ ns, cam0's at"),
+    (np.concatenate([clock(250), clock(250, START + 251 * FRAME_NS)]), r"cam1: frame 250 at \d+ ns, cam0's"),
     (clock()[::-1].copy(), r"cam1: 499 frame time\(s\) not after the one before"),
     (clock(n=1), r"cam1: 1 frame\(s\); a stream needs at least 2"),
 ])
 def test_every_disagreement_names_the_camera(other, message):
-    with pytest.raises(CameraSyncError, match=r"session s02: the cameras do not share a clock[\s\S]*" + message):
+    with pytest.raises(CameraSyncError, match=HEADER + message):
         check_sync({"cam0": clock(), "cam1": other, "cam2": clock()}, "s02")
 
 

@@ -33,6 +33,8 @@ BODY25 = (
 )
 MODEL_JOINTS = ("RShoulder", "RElbow", "RWrist", "LShoulder", "LElbow", "LWrist", "RHip", "LHip")
 MODEL_JOINT_IDS = tuple(BODY25.index(j) for j in MODEL_JOINTS)
+# the model joints' skeleton, as index pairs into MODEL_JOINTS: arms, shoulders, sides, hips
+MODEL_BONES = ((0, 1), (1, 2), (3, 4), (4, 5), (0, 3), (0, 6), (3, 7), (6, 7))
 N_INPUT = 3 * len(MODEL_JOINTS) + 3 + 9 + 3  # 39 values per frame
 ROT_COLUMNS = tuple(f"r{i}{j}" for i in range(3) for j in range(3))  # a rotation matrix, row-major
 

@@ -29,7 +29,7 @@ from pingpong.curation.events import (
     drop_ball_outliers,
 )
 from pingpong.curation.tracks import JOINT_VIEWS, JOINT_XYZ, frame_seconds, runs
-from pingpong.frames import MODEL_JOINT_IDS
+from pingpong.frames import MODEL_BONES, MODEL_JOINT_IDS
 
 MIN_PIECE_SAMPLES = 4  # a quadratic through 3 samples is the samples themselves
 DEFAULT_PADLEN = 15  # sosfiltfilt's own padding for a 4th-order filter, the least used here
@@ -127,22 +127,23 @@ def lowpass(signal, cutoff_hz: float, fs_hz: float = 100.0, order: int = 4) -> n
 
 
 # pairs of model joints (positions in MODEL_JOINT_IDS) whose distance is a rigid bone or the torso's width
-BONES = ((0, 1), (1, 2), (3, 4), (4, 5), (0, 3), (6, 7), (0, 6), (3, 7))
 
 
 def clean_pose(pose3d: pd.DataFrame, max_bone_error: float = 0.10) -> pd.DataFrame:
     """pose3d with bad joints removed (coordinates NaN, views 0): a joint is bad on a frame where every
-    bone (BONES) it belongs to is longer or shorter than that bone's median over the player's session by
-    more than max_bone_error (m), e.g. a joint triangulated onto the other arm or another person. On the
-    raw pose, before the low-pass, which would smear one such frame over its neighbours."""
+    bone (frames.MODEL_BONES) it belongs to is longer or shorter than that bone's median over the
+    player's session by more than max_bone_error (m), e.g. a joint triangulated onto the other arm or
+    another person. On the raw pose, before the low-pass, which would smear one such frame over its
+    neighbours."""
     out = pose3d.copy()
     for player in out["player"].unique():
         rows = (out["player"] == player).to_numpy()
         joints = out.loc[rows, JOINT_XYZ].to_numpy(float).reshape(-1, len(MODEL_JOINT_IDS), 3)
-        lengths = np.stack([np.linalg.norm(joints[:, a] - joints[:, b], axis=1) for a, b in BONES], axis=1)
+        lengths = np.stack([np.linalg.norm(joints[:, a] - joints[:, b], axis=1) for a, b in MODEL_BONES],
+                           axis=1)
         with np.errstate(invalid="ignore"):
             off = np.abs(lengths - np.nanmedian(lengths, axis=0)) > max_bone_error
-        bad = np.stack([off[:, [k for k, bone in enumerate(BONES) if j in bone]].all(axis=1)
+        bad = np.stack([off[:, [k for k, bone in enumerate(MODEL_BONES) if j in bone]].all(axis=1)
                         for j in range(len(MODEL_JOINT_IDS))], axis=1)  # (T, 8)
         bad_xyz = np.repeat(bad, 3, axis=1)
         out.loc[rows, JOINT_XYZ] = np.where(bad_xyz, np.nan, out.loc[rows, JOINT_XYZ].to_numpy(float))

@@ -42,6 +42,7 @@ from scipy.spatial.transform import Rotation
 from pingpong.curation.labels import BALL, PADDLE_POSITION, PADDLE_ROTATION
 from pingpong.frames import (
     BALL_RADIUS,
+    MODEL_BONES,
     MODEL_JOINTS,
     N_INPUT,
     NET_HEIGHT,
@@ -61,7 +62,6 @@ TOPICS = ("/table", "/ball", "/prediction", "/robot", "/opponent", "/tf")
 # the frames the arm's links are drawn through, base to paddle (the iiwa has no visuals in the URDF)
 ARM_FRAMES = ("iiwa_link_0", *(f"iiwa_link_{i}" for i in range(1, 8)), "flange", "paddle")
 # bones between MODEL_JOINTS (RShoulder, RElbow, RWrist, LShoulder, LElbow, LWrist, RHip, LHip)
-BONES = ((0, 1), (1, 2), (3, 4), (4, 5), (0, 3), (0, 6), (3, 7), (6, 7))
 TABLE_THICKNESS = 0.025  # m, the top only (legs are not drawn)
 LINK_THICKNESS = 0.10  # m, the iiwa's links are 10-15 cm across
 PADDLE_THICKNESS = 0.01  # m, as the URDF's paddle disc
@@ -380,7 +380,8 @@ def opponent_update(scene: SceneEpisode, i: int, log_time: int) -> SceneUpdate:
     if not np.isfinite(joints).all():
         return update
     skeleton = _entity("skeleton", log_time)
-    _line(skeleton, [joints[j] for bone in BONES for j in bone], 0.03, OPPONENT, LinePrimitive.LINE_LIST)
+    points = [joints[j] for bone in MODEL_BONES for j in bone]
+    _line(skeleton, points, 0.03, OPPONENT, LinePrimitive.LINE_LIST)
     for joint in joints:
         _sphere(skeleton, joint, 0.06, OPPONENT)
     update.entities.append(skeleton)

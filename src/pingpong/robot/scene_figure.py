@@ -22,6 +22,7 @@ from matplotlib.patches import Circle, Polygon, Rectangle  # noqa: E402
 from pingpong.common.atomic import atomic_path  # noqa: E402
 from pingpong.frames import (  # noqa: E402
     BALL_RADIUS,
+    MODEL_BONES,
     NET_HEIGHT,
     NET_OVERHANG,
     STRIKE_Y,
@@ -30,7 +31,6 @@ from pingpong.frames import (  # noqa: E402
 )
 from pingpong.robot.model import PADDLE_RADIUS  # noqa: E402
 from pingpong.robot.scene import (  # noqa: E402
-    BONES,
     TABLE_THICKNESS,
     SceneEpisode,
     arm_points,
@@ -110,7 +110,7 @@ def _draw_opponent(ax, scene: SceneEpisode, view) -> None:
     if len(seen) == 0:
         return
     i = seen[-1]
-    for a, b in BONES:
+    for a, b in MODEL_BONES:
         ax.plot(*_xy(scene.joints[i, [a, b]], view), color=COLORS["opponent"], lw=2)
     rim = disc(scene.opponent_paddle[i], scene.opponent_paddle_rotation[i])
     _patch(ax, rim, view, facecolor=COLORS["paddle"], edgecolor="k", lw=0.4)
