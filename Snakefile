@@ -11,13 +11,16 @@ min_version("9.0")
 sys.path.insert(0, str(Path(workflow.basedir) / "src"))
 
 from pingpong.common.config import validate_config
+from pingpong.io.openpose_json import KEYPOINT_MODELS
 from pingpong.uncertainty.names import ESTIMATORS
 
 
 configfile: "config/config.yaml"
 
 
-validate_config(config, Path(workflow.basedir) / "config/schema.yaml", enums={"robot.estimator": [*ESTIMATORS, None]})
+# keys whose values are registered names take their enums from the registries
+REGISTERED = {"robot.estimator": [*ESTIMATORS, None], "lab.openpose_model": list(KEYPOINT_MODELS)}
+validate_config(config, Path(workflow.basedir) / "config/schema.yaml", enums=REGISTERED)
 
 
 include: "workflow/rules/common.smk"
@@ -48,5 +51,6 @@ rule all:
         "reports/tables/robot.md",
         rules.robot_scene.output,
         twin_reports(),
+        overlay_figures(),
         report_pages(),
     default_target: True

@@ -6,6 +6,7 @@ joints are nearest (median over its detected joints).
 """
 
 import itertools
+import json
 import warnings
 
 import numpy as np
@@ -14,8 +15,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from pingpong.common.artifacts import Provenance, read_table, write_table
-from pingpong.frames import MODEL_JOINT_IDS
-from pingpong.io.openpose_json import write_keypoints_json
+from pingpong.frames import BODY25, MODEL_JOINT_IDS
+from pingpong.io.openpose_json import BODY25_NAME, KEYPOINT_MODELS, write_keypoints_json
 from pingpong.perception.pose2d import (
     MIN_CONFIDENCE,
     TYPICAL_HEIGHTS,
@@ -202,6 +203,45 @@ def test_table_from_an_openpose_folder(twin, tmp_path):
     bad.write_text('{"version":1.3,"people":[{"pose_keypoints_2d":[1,2')
     with pytest.raises(ValueError, match="s00_cam0_000000000007_keypoints.json"):
         pose2d_table(tmp_path, camera, time_ns)
+
+
+def _write_in_model_order(folder, people, model):
+    """One {name}.{frame:05d}.json per frame of BODY_25 people (F, P, 25, 3), serialised in the model's
+    keypoint order by joint name (joints BODY_25 lacks, such as BODY_25B's HeadTop, undetected)."""
+    names = [BODY25_NAME.get(name, name) for name in KEYPOINT_MODELS[model]]
+    order = [BODY25.index(name) if name in BODY25 else None for name in names]
+    for frame, frame_people in enumerate(people):
+        detected = frame_people[(frame_people[..., 2] > 0).any(axis=-1)]
+        poses = [[v for j in order for v in (person[j] if j is not None else (0, 0, 0))]
+                 for person in detected.tolist()]
+        doc = {"version": 1.3, "people": [{"person_id": [-1], "pose_keypoints_2d": pose} for pose in poses]}
+        (folder / f"s00_cam0.{frame:05d}.json").write_text(json.dumps(doc))
+
+
+@pytest.mark.parametrize("model", ["BODY_25B", "COCO", "HALPE_26"])
+def test_table_from_any_model_and_layout(twin, tmp_path, model):
+    """The twin's people written in another model's order give the BODY_25 data's model joints: the
+    8 joints map by name, the rest differs only where the model lacks a BODY_25 joint (a derived neck
+    or mid-hip, no feet in COCO), which here moves no assignment."""
+    _, cameras, keypoints, _ = twin
+    camera, people = cameras[0], keypoints[0][:60]
+    time_ns = 10_000_000 * np.arange(len(people), dtype=np.int64)
+    tables = {}
+    for name in ("BODY_25", model):
+        (tmp_path / name).mkdir()
+        _write_in_model_order(tmp_path / name, people, name)
+        tables[name] = pose2d_table(tmp_path / name, camera, time_ns, model=name, pattern="dotted")
+    table = tables[model]
+    assert list(table.columns) == list(POSE2D.columns)
+    assert np.isfinite(table.filter(regex="_u$").to_numpy()).mean() > 0.5
+    np.testing.assert_array_equal(table.iloc[:, 2:].to_numpy(), tables["BODY_25"].iloc[:, 2:].to_numpy())
+    count = 3 * len(KEYPOINT_MODELS[model])
+    if count == 75:  # BODY_25B read as the default BODY_25: other joints, which no count can reveal
+        wrong = pose2d_table(tmp_path / model, camera, time_ns)
+        assert not np.allclose(wrong.iloc[:, 2:].to_numpy(), table.iloc[:, 2:].to_numpy(), equal_nan=True)
+    else:
+        with pytest.raises(ValueError, match=rf"s00_cam0.00000.json: person 0 has {count} "):
+            pose2d_table(tmp_path / model, camera, time_ns)  # declared BODY_25 by default
 
 
 @given(x=st.floats(-1.4, 1.4), depth=st.floats(0.1, 2.5), side=st.sampled_from([1, -1]),

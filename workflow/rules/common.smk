@@ -108,6 +108,12 @@ REPORT_TABLES = {
 }
 
 
+def overlay_figures():
+    """The QA overlays of the first perception.overlay_sessions sessions, one per camera."""
+    chosen = sessions()[: config["perception"]["overlay_sessions"]]
+    return [f"reports/figures/overlay_{s}_{c}.png" for s in chosen for c in session_cameras(s)]
+
+
 def report_pages():
     return [f"reports/pages/{stage}/{table}.html" for stage, tables in REPORT_TABLES.items() for table in tables]
 

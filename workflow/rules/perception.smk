@@ -73,6 +73,9 @@ rule pose2d:
     params:
         cam="{cam}",
         min_confidence=PERCEPTION["pose_min_confidence"],
+        # the twin writes OpenPose's own BODY_25 files
+        model=config["lab"]["openpose_model"] if config["source"] == "lab" else "BODY_25",
+        pattern=config["lab"]["openpose_pattern"] if config["source"] == "lab" else "openpose",
         strict=PERCEPTION["strict_mcap"],
         code=code("pose2d"),
     log:
@@ -138,6 +141,33 @@ rule triangulation:
         code=code("triangulation"),
     log:
         "logs/triangulation/{session}.log",
+    conda:
+        CONDA_ENV
+    script:
+        STAGE_SCRIPT
+
+
+rule report_overlay:
+    input:
+        cameras="interim/calibration/cameras.json",
+        stream=lambda wc: camera_file(wc.session, wc.cam),
+        detections="interim/detections/{session}/{cam}.parquet",
+        ball3d="interim/ball3d/{session}.parquet",
+        pose3d="interim/pose3d/{session}.parquet",
+    output:
+        figure=report(
+            "reports/figures/overlay_{session}_{cam}.png",
+            caption="../report/overlay.rst",
+            category="perception",
+        ),
+    params:
+        session="{session}",
+        cam="{cam}",
+        n_frames=PERCEPTION["overlay_frames"],
+        strict=PERCEPTION["strict_mcap"],
+        code=code("report_overlay"),
+    log:
+        "logs/report_overlay/{session}_{cam}.log",
     conda:
         CONDA_ENV
     script:

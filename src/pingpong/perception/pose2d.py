@@ -27,6 +27,7 @@ last many frames look continuous in 2D and are left to the multi-view 3D stage.
 """
 
 import os
+import re
 
 import numpy as np
 import pandas as pd
@@ -245,15 +246,18 @@ def model_joints(players: np.ndarray, min_confidence: float = MIN_CONFIDENCE) ->
 
 
 def pose2d_table(folder: str | os.PathLike, camera: Camera, time_ns: np.ndarray,
-                 min_confidence: float = MIN_CONFIDENCE) -> pd.DataFrame:
+                 min_confidence: float = MIN_CONFIDENCE, model: str = "BODY_25",
+                 pattern: str | re.Pattern | None = None) -> pd.DataFrame:
     """Both players' model joints from one camera's OpenPose folder, one row per (frame, player).
 
-    time_ns (F,): the camera's frame times; the folder must hold frames 0..F-1. Columns: time_ns,
+    time_ns (F,): the camera's frame times; the folder must hold frames 0..F-1, files named by
+    pattern (`openpose_json.layout_patterns`: any known layout by default) holding keypoints of the
+    declared model (`openpose_json.KEYPOINT_MODELS`), mapped by name to BODY_25. Columns: time_ns,
     player ('near'/'far'), and per model joint j (BODY_25 index): j{j:02d}_u, _v (distorted pixels)
     and _conf (OpenPose's confidence, 0 where not detected); gaps have u, v NaN.
     """
     time_ns = np.asarray(time_ns, np.int64)
-    frames, keypoints = read_keypoints_folder(folder)
+    frames, keypoints = read_keypoints_folder(folder, model, pattern)
     if not np.array_equal(frames, np.arange(len(time_ns))):
         missing = np.setdiff1d(np.arange(len(time_ns)), frames)
         raise ValueError(f"{folder}: OpenPose frames {frames[:1].tolist()}..{frames[-1:].tolist()} "

@@ -12,5 +12,5 @@ def main(ctx):
     cameras, _ = load_cameras(ctx.input.cameras)
     camera = next(c for c in cameras if c.name == p["cam"])
     times = read_camera_times(ctx.input.mcap, strict=p["strict"])
-    table = pose2d_table(ctx.input.openpose, camera, times, p["min_confidence"])
+    table = pose2d_table(ctx.input.openpose, camera, times, p["min_confidence"], p["model"], p["pattern"])
     write_table(table, ctx.output.pose2d, POSE2D, ctx.provenance())
