@@ -155,3 +155,18 @@ def test_content_hash_ignores_provenance_but_not_data(tmp_path):
     diff = compare_runs(tmp_path / "a", tmp_path / "b")
     assert diff == {"only_in_a": [], "only_in_b": ["processed/extra.md"],
                     "differ": ["processed/j.json", "processed/t.parquet"]}
+
+
+def test_what_c_code_writes_on_fd2_reaches_the_stage_log(tmp_path):
+    """run_rule points file descriptor 2 at the rule's log: libjpeg's and FFmpeg's warnings land there."""
+    script = textwrap.dedent("""
+        import os, sys
+        from pingpong.common.script import stderr_fd_to
+        with open(sys.argv[1], "w", buffering=1) as log, stderr_fd_to(log.fileno()):
+            os.write(2, b"Corrupt JPEG data: 3 extraneous bytes\\n")
+        os.write(2, b"after the block\\n")
+    """)
+    log = tmp_path / "stage.log"
+    proc = subprocess.run([sys.executable, "-c", script, str(log)], capture_output=True, text=True, check=True)
+    assert log.read_text() == "Corrupt JPEG data: 3 extraneous bytes\n"
+    assert proc.stderr == "after the block\n"  # fd 2 restored

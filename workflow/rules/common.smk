@@ -43,6 +43,24 @@ def camera_file(session, cam):
     return found[0] if found else f"raw/sessions/{session}/{cam}.mcap"
 
 
+def camera_reading(session, cam):
+    """How to read a camera file beyond its format (pingpong.io.camera_streams): a video's per-frame
+    times from raw/sessions/{session}/{cam}_timestamps.csv when there is one, else from the container
+    from lab.video_start_ns[session] on; the image topic of a bag with several (lab.camera_topics)."""
+    if config["source"] == "twin":
+        return {"timestamps": None, "start_ns": 0, "topic": None}
+    csv = f"raw/sessions/{session}/{cam}_timestamps.csv"
+    video = not camera_file(session, cam).endswith(".mcap")
+    return {"timestamps": csv if video and Path(csv).exists() else None,
+            "start_ns": config["lab"]["video_start_ns"].get(session, 0) if video else 0,
+            "topic": config["lab"]["camera_topics"].get(cam)}
+
+
+def timestamp_files(session, cams):
+    """The timestamp CSVs the cameras' videos are read with (inputs, so that their edits rerun)."""
+    return [r["timestamps"] for r in (camera_reading(session, c) for c in cams) if r["timestamps"]]
+
+
 def session_cameras(session):
     """The cameras recorded in a session: a lab session may lack one (>= 2 must remain)."""
     if config["source"] == "twin":

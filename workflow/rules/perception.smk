@@ -29,6 +29,7 @@ rule paddle:
         cameras="interim/calibration/cameras.json",
         optitrack=lambda wc: optitrack_path(wc.session),
         clock=lambda wc: camera_file(wc.session, session_cameras(wc.session)[0]),
+        timestamps=lambda wc: timestamp_files(wc.session, session_cameras(wc.session)[:1]),
     output:
         paddle="interim/paddle/{session}.parquet",
     params:
@@ -36,6 +37,7 @@ rule paddle:
         max_gap_s=PERCEPTION["paddle_max_gap_s"],
         strict=PERCEPTION["strict_mcap"],
         take_start_ns=lambda wc: motive_take_start_ns(wc.session),
+        reading=lambda wc: camera_reading(wc.session, session_cameras(wc.session)[0]),
         code=code("paddle"),
     log:
         "logs/paddle/{session}.log",
@@ -47,10 +49,12 @@ rule paddle:
 
 rule detection:
     input:
-        mcap=lambda wc: camera_file(wc.session, wc.cam),
+        stream=lambda wc: camera_file(wc.session, wc.cam),
+        timestamps=lambda wc: timestamp_files(wc.session, [wc.cam]),
     output:
         detections="interim/detections/{session}/{cam}.parquet",
     params:
+        reading=lambda wc: camera_reading(wc.session, wc.cam),
         strict=PERCEPTION["strict_mcap"],
         code=code("detection"),
     log:
@@ -66,7 +70,8 @@ rule detection:
 rule pose2d:
     input:
         cameras="interim/calibration/cameras.json",
-        mcap=lambda wc: camera_file(wc.session, wc.cam),
+        stream=lambda wc: camera_file(wc.session, wc.cam),
+        timestamps=lambda wc: timestamp_files(wc.session, [wc.cam]),
         openpose="raw/sessions/{session}/openpose/{cam}",
     output:
         pose2d="interim/pose2d/{session}/{cam}.parquet",
@@ -76,6 +81,7 @@ rule pose2d:
         # the twin writes OpenPose's own BODY_25 files
         model=config["lab"]["openpose_model"] if config["source"] == "lab" else "BODY_25",
         pattern=config["lab"]["openpose_pattern"] if config["source"] == "lab" else "openpose",
+        reading=lambda wc: camera_reading(wc.session, wc.cam),
         strict=PERCEPTION["strict_mcap"],
         code=code("pose2d"),
     log:
@@ -89,11 +95,13 @@ rule pose2d:
 rule sync_check:
     input:
         streams=lambda wc: [camera_file(wc.session, c) for c in session_cameras(wc.session)],
+        timestamps=lambda wc: timestamp_files(wc.session, session_cameras(wc.session)),
     output:
         sync="interim/sync/{session}.parquet",
     params:
         session="{session}",
         cams=lambda wc: session_cameras(wc.session),
+        readings=lambda wc: [camera_reading(wc.session, c) for c in session_cameras(wc.session)],
         strict=PERCEPTION["strict_mcap"],
         code=code("sync_check"),
     log:
@@ -151,6 +159,7 @@ rule report_overlay:
     input:
         cameras="interim/calibration/cameras.json",
         stream=lambda wc: camera_file(wc.session, wc.cam),
+        timestamps=lambda wc: timestamp_files(wc.session, [wc.cam]),
         detections="interim/detections/{session}/{cam}.parquet",
         ball3d="interim/ball3d/{session}.parquet",
         pose3d="interim/pose3d/{session}.parquet",
@@ -164,6 +173,7 @@ rule report_overlay:
         session="{session}",
         cam="{cam}",
         n_frames=PERCEPTION["overlay_frames"],
+        reading=lambda wc: camera_reading(wc.session, wc.cam),
         strict=PERCEPTION["strict_mcap"],
         code=code("report_overlay"),
     log:

@@ -11,6 +11,7 @@ import contextlib
 import importlib
 import json
 import logging
+import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -92,6 +93,21 @@ def pin_threads(threads: int) -> None:
         torch.set_num_threads(max(1, int(threads)))
 
 
+@contextlib.contextmanager
+def stderr_fd_to(target_fd: int):
+    """File descriptor 2 onto target_fd for the block: what C libraries print (libjpeg's "Corrupt JPEG
+    data", FFmpeg's decoder messages) lands in the stage's log, not only Python's sys.stderr."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    os.dup2(target_fd, 2)
+    try:
+        yield
+    finally:
+        sys.stderr.flush()
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
 def check_checkout(root: Path) -> None:
     """The imported `pingpong` must be the checkout's own `src/`: the code hash is computed from there."""
     imported = Path(pingpong.__file__).resolve().parent
@@ -103,7 +119,8 @@ def check_checkout(root: Path) -> None:
 
 
 def run_rule(smk=None) -> None:
-    """Run the rule's entry `main(ctx)` with its logging (and stderr, where tqdm writes) to the log file."""
+    """Run the rule's entry `main(ctx)` with its logging and stderr (Python's, where tqdm writes, and file
+    descriptor 2, where C libraries write) to the log file."""
     ctx = _from_snakemake(smk) if smk is not None else _from_argv(sys.argv[1:])
     script = Path(smk.scriptdir) if smk is not None else Path(sys.argv[0]).resolve().parent
     check_checkout(script.parents[1])  # workflow/scripts/ -> the checkout's root
@@ -113,8 +130,9 @@ def run_rule(smk=None) -> None:
     with contextlib.ExitStack() as stack:
         if ctx.log is not None:
             ctx.log.parent.mkdir(parents=True, exist_ok=True)
-            stream = stack.enter_context(open(ctx.log, "w"))
+            stream = stack.enter_context(open(ctx.log, "w", buffering=1))  # line-buffered: in order with fd 2
             stack.enter_context(contextlib.redirect_stderr(stream))
+            stack.enter_context(stderr_fd_to(stream.fileno()))
         else:
             stream = sys.stderr
         logging.basicConfig(stream=stream, level=logging.INFO, force=True,

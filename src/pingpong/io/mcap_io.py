@@ -8,6 +8,9 @@ OptiTrack file `raw/sessions/{s}/optitrack.mcap`: one channel per rigid body,
 `/optitrack/{body}` (e.g. `paddle_A`, `table_marker_0`), protobuf `foxglove.PoseInFrame` in
 frame `optitrack_world` (Motive's y-up world), log_time = OptiTrack's clock (ns); zstd chunks.
 
+Other MCAP files (ROS 2 bags) are listed by `mcap_channels` and read one channel at a time by
+`read_channel`, with the same handling of damage.
+
 Writers are context managers that stream messages to a temporary file beside the target and
 rename it on a clean exit, so an exception or a kill never leaves a file under the final name.
 Readers stream (memory bounded) and, on a truncated or corrupt file, stop at the damage with a
@@ -24,7 +27,9 @@ import numpy as np
 import pandas as pd
 from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
 from foxglove_schemas_protobuf.PoseInFrame_pb2 import PoseInFrame
-from mcap.reader import NonSeekingReader
+from mcap.reader import NonSeekingReader, SeekingReader
+from mcap.records import Channel, Schema
+from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType
 from mcap_protobuf.writer import Writer as ProtobufWriter
 
@@ -118,18 +123,23 @@ class OptitrackWriter(_AtomicMcapWriter):
                                    publish_time=log_time_ns)
 
 
-def _iter_messages(path: Path, schema_name: str, strict: bool, what: str):
-    """(topic, log_time, data) of every message, stopping (warning or raising) at damage."""
+def _iter_messages(path: Path, schema_name: str, strict: bool, what: str, topic: str | None = None,
+                   message_encoding: str = "protobuf"):
+    """(topic, log_time, data) of every message (of `topic` alone when given, the others skipped),
+    stopping (warning or raising) at damage."""
     last_ns = None
     with open(path, "rb") as f:
         reader = NonSeekingReader(f, validate_crcs=True)
         try:
             for schema, channel, message in reader.iter_messages(log_time_order=False):
-                if schema is None or schema.name != schema_name or channel.message_encoding != "protobuf":
+                if topic is not None and channel.topic != topic:
+                    continue
+                if (schema is None or schema.name != schema_name
+                        or channel.message_encoding != message_encoding):
                     raise McapDamagedError(
                         f"{path}: channel {channel.topic} has schema "
                         f"{None if schema is None else schema.name!r} ({channel.message_encoding}), "
-                        f"expected protobuf {schema_name!r}")
+                        f"expected {message_encoding} {schema_name!r}")
                 yield channel.topic, message.log_time, message.data
                 last_ns = message.log_time
         except McapDamagedError:
@@ -142,11 +152,13 @@ def _iter_messages(path: Path, schema_name: str, strict: bool, what: str):
             warnings.warn(text, stacklevel=3)
 
 
-def read_camera_stream(path: str | os.PathLike, strict: bool = False) -> Iterator[tuple[int, bytes]]:
-    """Stream (log_time_ns, jpeg bytes) of a camera file's frames in file order."""
+def read_camera_stream(path: str | os.PathLike, strict: bool = False,
+                       topic: str | None = None) -> Iterator[tuple[int, bytes]]:
+    """Stream (log_time_ns, jpeg bytes) of a camera file's frames in file order (of `topic` alone when
+    given; otherwise every channel must be a camera channel)."""
     path = Path(path)
     for _, log_time, data in _iter_messages(path, "foxglove.CompressedImage", strict,
-                                            "foxglove.CompressedImage frames"):
+                                            "foxglove.CompressedImage frames", topic=topic):
         message = CompressedImage.FromString(data)
         if message.format not in ("jpeg", "jpg"):
             raise McapDamagedError(f"{path}: frame at {log_time} ns has format {message.format!r}, "
@@ -176,7 +188,47 @@ def read_optitrack(path: str | os.PathLike, strict: bool = False) -> dict[str, p
     return frames
 
 
-def read_camera_times(path: str | os.PathLike, strict: bool = False) -> np.ndarray:
+def read_camera_times(path: str | os.PathLike, strict: bool = False, topic: str | None = None) -> np.ndarray:
     """log_time (ns) of every frame of a camera file, without decoding the images: the camera clock."""
     return np.array([t for _, t, _ in _iter_messages(Path(path), "foxglove.CompressedImage", strict,
-                                                     "foxglove.CompressedImage frames")], dtype=np.int64)
+                                                     "foxglove.CompressedImage frames", topic=topic)],
+                    dtype=np.int64)
+
+
+def read_channel(path: str | os.PathLike, topic: str, schema_name: str, message_encoding: str,
+                 strict: bool = False) -> Iterator[tuple[int, bytes]]:
+    """Stream (log_time_ns, message bytes) of one channel in file order, any schema and encoding (e.g. a
+    ROS 2 bag's CDR `sensor_msgs/msg/Image`); damage is handled as by the readers above."""
+    for _, log_time, data in _iter_messages(Path(path), schema_name, strict, f"{schema_name} messages",
+                                            topic=topic, message_encoding=message_encoding):
+        yield log_time, data
+
+
+def mcap_channels(path: str | os.PathLike) -> tuple[dict[str, tuple[Schema | None, str]], str | None]:
+    """({topic: (schema record or None, message encoding)}, why the list may be incomplete or None).
+
+    Reads the summary at the end of the file; where there is none (a truncated file, or a writer that
+    writes none) the file is scanned from the start up to any damage, which the second value describes.
+    """
+    path = Path(path)
+    with open(path, "rb") as f:
+        try:
+            summary = SeekingReader(f).get_summary()
+        except Exception:  # no footer: truncated or corrupt, scanned below
+            summary = None
+        if summary is not None and summary.channels:
+            return {c.topic: (summary.schemas.get(c.schema_id), c.message_encoding)
+                    for c in summary.channels.values()}, None
+        f.seek(0)
+        schemas: dict[int, Schema] = {}
+        channels: dict[str, Channel] = {}
+        damage = None
+        try:
+            for record in StreamReader(f, validate_crcs=True).records:
+                if isinstance(record, Schema):
+                    schemas[record.id] = record
+                elif isinstance(record, Channel):
+                    channels[record.topic] = record
+        except Exception as exc:  # the mcap reader signals truncation/corruption with several types
+            damage = f"truncated or corrupt ({type(exc).__name__}: {exc})"
+    return {t: (schemas.get(c.schema_id), c.message_encoding) for t, c in channels.items()}, damage

@@ -11,9 +11,9 @@ from pingpong.perception.schemas import DETECTIONS
 
 
 def main(ctx):
-    frames = read_camera_stream(ctx.input.mcap, strict=ctx.params["strict"])
+    frames = read_camera_stream(ctx.input.stream, strict=ctx.params["strict"])
     frames = tqdm(frames, mininterval=10, unit="frame")
     table = detect_stream(frames, BallDetector())
     write_table(table, ctx.output.detections, DETECTIONS, ctx.provenance())
-    logging.info("%s: ball found in %d of %d frames, %d frames did not decode", ctx.input.mcap,
+    logging.info("%s: ball found in %d of %d frames, %d frames did not decode", ctx.input.stream,
                  table["detected"].sum(), len(table), (~table["decode_ok"]).sum())

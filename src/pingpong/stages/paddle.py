@@ -3,7 +3,7 @@
 import numpy as np
 
 from pingpong.common.artifacts import write_table
-from pingpong.io.mcap_io import read_camera_times
+from pingpong.io.camera_streams import camera_frame_times
 from pingpong.io.optitrack import read_optitrack_poses
 from pingpong.perception.calibration import load_cameras
 from pingpong.perception.paddle import paddle_table
@@ -13,7 +13,7 @@ from pingpong.perception.schemas import PADDLE
 def main(ctx):
     p = ctx.params
     _, calibration = load_cameras(ctx.input.cameras)
-    frame_times = read_camera_times(ctx.input.clock, strict=p["strict"])
+    frame_times = camera_frame_times(ctx.input.clock, p["strict"], **p["reading"])
     poses = read_optitrack_poses(ctx.input.optitrack, p["strict"], p["take_start_ns"])
     table = paddle_table(poses, p["bodies"], np.array(calibration["T_table_from_optitrack"]), frame_times,
                          p["max_gap_s"])

@@ -14,7 +14,7 @@ from pingpong.reports.overlays import session_overlay
 def main(ctx):
     p, i = ctx.params, ctx.input
     camera = next(c for c in load_cameras(i.cameras)[0] if c.name == p["cam"])
-    _, frames = open_camera_stream(i.stream, strict=p["strict"])
+    _, frames = open_camera_stream(i.stream, p["strict"], **p["reading"])
     grid = session_overlay(frames, camera, read_table(i.ball3d, BALL3D), read_table(i.pose3d, POSE3D),
                            read_table(i.detections, DETECTIONS), p["n_frames"], f"{p['session']} {p['cam']}")
     write_bytes_atomic(ctx.output.figure, cv2.imencode(".png", grid)[1].tobytes())
