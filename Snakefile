@@ -43,7 +43,7 @@ rule all:
     input:
         raw_outputs(),
         "interim/calibration/cameras.json",
-        expand("interim/paddle/{session}.parquet", session=sessions()),
+        expand("interim/paddle/{session}.parquet", session=sessions() if has_optitrack() else []),
         "reports/tables/curation.md",
         "reports/tables/cv_results.md",
         "reports/tables/strike_error.md",

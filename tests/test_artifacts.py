@@ -167,6 +167,7 @@ def test_what_c_code_writes_on_fd2_reaches_the_stage_log(tmp_path):
         os.write(2, b"after the block\\n")
     """)
     log = tmp_path / "stage.log"
-    proc = subprocess.run([sys.executable, "-c", script, str(log)], capture_output=True, text=True, check=True)
+    proc = subprocess.run([sys.executable, "-c", script, str(log)], capture_output=True, text=True,
+                          check=True)
     assert log.read_text() == "Corrupt JPEG data: 3 extraneous bytes\n"
     assert proc.stderr == "after the block\n"  # fd 2 restored

@@ -1,13 +1,20 @@
-"""Calibration import/export: round trips, hand-written files in the wild's layouts, clear errors."""
+"""Calibration import/export: round trips, hand-written files in the wild's layouts, clear errors; and the
+calibration stage run on an import alone, placed in the table frame and checked by reprojection."""
 
+import logging
 import textwrap
 
+import cv2
 import numpy as np
+import pandas as pd
 import pytest
 from scipy.spatial.transform import Rotation
 
 from pingpong.common.camera import Camera, look_at
+from pingpong.common.patterns import TABLE_MARKERS
 from pingpong.common.rigid import apply_transform, make_transform
+from pingpong.common.script import Named, StageContext
+from pingpong.frames import TABLE_HALF_LENGTH, TABLE_HALF_WIDTH
 from pingpong.io.calibration_import import (
     change_world_frame,
     export_anipose_toml,
@@ -15,6 +22,16 @@ from pingpong.io.calibration_import import (
     read_anipose_toml,
     read_opencv_calibration,
 )
+from pingpong.perception.calibration import (
+    CalibrationError,
+    load_cameras,
+    optitrack_record,
+    table_from_optitrack,
+)
+from pingpong.stages import calibration as stage
+from pingpong.twin.calibration_images import render_table_view
+from pingpong.twin.render import make_lab
+from pingpong.twin.rig import make_rig
 
 
 def random_cameras(rng: np.random.Generator, n: int = 4) -> list[Camera]:
@@ -87,8 +104,10 @@ def test_hand_written_anipose_snippet(tmp_path):
     np.testing.assert_allclose(a.R, [[1, 0, 0], [0, 0, -1], [0, 1, 0]], atol=1e-15)  # 90 deg about x
     np.testing.assert_allclose(a.t, [0.1, -0.25, 3.2], atol=1e-15)  # mm -> m
     np.testing.assert_array_equal(b.R, np.eye(3))
-    metres = read_anipose_toml(path, units="m")
-    np.testing.assert_allclose(metres[0].t, [100.0, -250.0, 3200.0])
+    with pytest.raises(ValueError, match=r"calibration\.toml: camera A is 3211 m from the world origin "
+                                         r"\(expected within 20 m\) with units 'm': is units 'm' right for a "
+                                         r"file in millimetres\?"):
+        read_anipose_toml(path, units="m")
 
 
 def test_pose2sim_snippet_with_four_distortions(tmp_path):
@@ -234,3 +253,170 @@ def test_not_a_rotation_is_refused(tmp_path):
     with pytest.raises(ValueError, match=r"c\.json: cameras\[0\]: rotation is not orthonormal"):
         read_opencv_calibration(path, units="m")
 
+
+
+METRES_AS_MM = (r"cameras cam0 and cam1 \d+(\.\d+)? mm apart \(expected 0\.3 to 30 m\) with units 'mm': "
+                r"is units 'mm' right for a file in metres\?")
+MM_AS_METRES = r"camera cam\d is \d+ m from the world origin .* is units 'm' right for a file in millimetres"
+
+
+@pytest.mark.parametrize(("written", "asked", "message"),
+                         [("m", "mm", METRES_AS_MM), ("mm", "m", MM_AS_METRES)])
+def test_units_off_by_1000_name_the_units(tmp_path, written, asked, message):
+    cameras = random_cameras(np.random.default_rng(7), 3)
+    toml, yaml = tmp_path / "c.toml", tmp_path / "c.yaml"
+    export_anipose_toml(cameras, toml, units=written)
+    toml.write_text(toml.read_text().replace(f'units = "{written}"\n', ""))  # files that state no units
+    export_opencv_yaml(cameras, yaml, units=written)
+    yaml.write_text(yaml.read_text().replace(f"units: {written}\n", "").replace(f'units: "{written}"\n', ""))
+    for path, read in [(toml, read_anipose_toml), (yaml, read_opencv_calibration)]:
+        with pytest.raises(ValueError, match=message):
+            read(path, units=asked)
+    with pytest.raises(ValueError, match=message):
+        run_import(tmp_path, toml, "table", units=asked, names=["cam0"])
+
+
+# --- the calibration stage on an import alone ------------------------------------------------------------
+
+NAMES = ["cam0", "cam1", "cam2", "cam3"]
+TABLE_CORNERS = np.array([[sx * TABLE_HALF_WIDTH, sy * TABLE_HALF_LENGTH, 0.0]
+                          for sx, sy in [(1, 1), (-1, 1), (-1, -1), (1, -1)]])  # table frame, m
+NET_ENDS = np.array([[0.9144, 0.0, 0.1525], [-0.9144, 0.0, 0.1525]])  # the net posts' tops, m
+
+
+def run_import(tmp_path, path, world, units="m", shots=(), names=NAMES, max_rms_share=0.002):
+    """The calibration stage's main on an import, with the table shots `shots` (one per camera) if any."""
+    params = {"cameras": names, "folders": [str(tmp_path / n) for n in names], "import_path": str(path),
+              "import_units": units, "import_world": world, "board": None, "fit_k3": None, "source": "lab",
+              "max_rms_share": max_rms_share, "strict": False, "take_start_ns": None, "code": ""}
+    inputs = Named(captures=[str(s) for s in shots]) if shots else Named()  # no optitrack
+    out = tmp_path / "cameras.json"
+    stage.main(StageContext("calibration", inputs, Named(cameras=str(out)), params, None))
+    return load_cameras(out)
+
+
+def in_world(cameras: list[Camera]) -> tuple[list[Camera], np.ndarray]:
+    """The cameras as a calibration with its own world frame (Anipose's) has them, and T_table_from_world."""
+    T_table_from_world = make_transform(Rotation.random(random_state=8).as_matrix(), [1.5, -2.0, 0.8])
+    return change_world_frame(cameras, T_table_from_world), T_table_from_world
+
+
+def test_import_alone_in_the_table_frame_runs_unchecked(tmp_path, caplog):
+    cameras = random_cameras(np.random.default_rng(9))
+    export_anipose_toml(cameras, tmp_path / "calibration.toml")
+    with caplog.at_level(logging.WARNING, logger="pingpong.perception.calibration"):
+        loaded, payload = run_import(tmp_path, tmp_path / "calibration.toml", "table")
+    assert_same_cameras(loaded, cameras)
+    assert payload["import_checks"] == [] and "imported calibration is UNCHECKED" in caplog.text
+    assert payload["T_table_from_optitrack"] is None
+    assert "no OptiTrack" in payload["T_table_from_optitrack_reason"]
+
+
+def test_import_alone_with_a_table_from_world_transform(tmp_path):
+    cameras = random_cameras(np.random.default_rng(10))
+    world_cameras, T_table_from_world = in_world(cameras)
+    export_opencv_yaml(world_cameras, tmp_path / "calibration.yaml", units="mm")
+    world = {"T_table_from_world": T_table_from_world.tolist()}
+    loaded, _ = run_import(tmp_path, tmp_path / "calibration.yaml", world, units="mm")
+    assert_same_cameras(loaded, cameras, atol=1e-9)
+
+
+def table_points(cameras: list[Camera], seen: dict[str, np.ndarray]) -> list[dict]:
+    """The config's table_points: each point with its pixels in the cameras that `seen` says see it."""
+    points = np.vstack([TABLE_CORNERS, NET_ENDS])
+    by_name = {c.name: c for c in cameras}
+    return [{"xyz_m": p.tolist(), "pixels": {name: by_name[name].project(p)[0].tolist()
+                                             for name, which in seen.items() if i in which}}
+            for i, p in enumerate(points) if any(i in which for which in seen.values())]
+
+
+def test_import_alone_placed_by_table_points(tmp_path):
+    cameras = random_cameras(np.random.default_rng(11))
+    world_cameras, _ = in_world(cameras)
+    export_anipose_toml(world_cameras, tmp_path / "calibration.toml")
+    # cam0 sees the four corners, cam1 two of them and a net post; cam2 and cam3 none
+    points = table_points(cameras, {"cam0": [0, 1, 2, 3], "cam1": [0, 3, 4]})
+    loaded, payload = run_import(tmp_path, tmp_path / "calibration.toml", {"table_points": points})
+    assert_same_cameras(loaded, cameras, atol=1e-6)
+    assert [c["camera"] for c in payload["import_checks"]] == ["cam0", "cam1"]
+    assert max(c["rms_px"] for c in payload["import_checks"]) < 1e-3
+
+
+def test_table_points_fail_the_check_when_a_camera_was_moved(tmp_path):
+    cameras = random_cameras(np.random.default_rng(11))
+    world_cameras, _ = in_world(cameras)
+    tilt = Rotation.from_rotvec([0.0, np.radians(1.0), 0.0]).as_matrix()  # cam1 turned by 1 deg
+    moved = Camera("cam1", world_cameras[1].K, world_cameras[1].dist, tilt @ world_cameras[1].R,
+                   tilt @ world_cameras[1].t, 1920, 1080)
+    export_anipose_toml([world_cameras[0], moved, *world_cameras[2:]], tmp_path / "calibration.toml")
+    points = table_points(cameras, {"cam0": [0, 1, 2, 3], "cam1": [0, 2, 3, 4]})
+    message = (r"cam\d: the calibration reprojects the listed table points \(which placed the rig\) at "
+               r"\d+\.\d+ px RMS, over the 4\.41 px limit \(0\.002 of the 1920x1080 image's diagonal")
+    with pytest.raises(CalibrationError, match=message):
+        run_import(tmp_path, tmp_path / "calibration.toml", {"table_points": points})
+
+
+@pytest.fixture(scope="module")
+def twin_shots(tmp_path_factory):
+    """Two of the twin's cameras (table frame) and their table.png shots of the ChArUco mat."""
+    folder = tmp_path_factory.mktemp("twin_shots")
+    cameras = make_rig(np.random.default_rng(0), 3, 480, 360)[:2]
+    rng = np.random.default_rng(1)
+    lab = make_lab(rng)
+    shots = []
+    for camera in cameras:
+        shots.append(folder / camera.name / "table.png")
+        shots[-1].parent.mkdir()
+        cv2.imwrite(str(shots[-1]), render_table_view(camera, lab, rng))
+    return cameras, shots
+
+
+def test_table_shots_check_an_import_and_fail_perturbed_extrinsics(tmp_path, twin_shots):
+    cameras, shots = twin_shots
+    export_anipose_toml(cameras, tmp_path / "calibration.toml")
+    loaded, payload = run_import(tmp_path, tmp_path / "calibration.toml", "table", shots=shots,
+                                 names=["cam0", "cam1"])
+    assert_same_cameras(loaded, cameras)
+    checks = payload["import_checks"]
+    assert [c["camera"] for c in checks] == ["cam0", "cam1"] and "table mat" in checks[0]["points"]
+    assert max(c["rms_px"] for c in checks) < 0.3  # the twin's true cameras: rendering and detection only
+    # the same file with cam1 shifted 3 cm sideways: the mat's corners move ~3 px at 4 m
+    shifted = Camera("cam1", cameras[1].K, cameras[1].dist, cameras[1].R, cameras[1].t + [0.03, 0.0, 0.0],
+                     480, 360)
+    export_anipose_toml([cameras[0], shifted], tmp_path / "calibration.toml")
+    message = (r"cam1: the calibration reprojects the table mat's \d+ corners in .*cam1/table\.png at "
+               r"\d\.\d+ px RMS, over the 1\.20 px limit")
+    with pytest.raises(CalibrationError, match=message):
+        run_import(tmp_path, tmp_path / "calibration.toml", "table", shots=shots, names=["cam0", "cam1"])
+
+
+@pytest.mark.parametrize(("units", "world", "names", "message"), [
+    (None, "table", NAMES, r"config perception\.calibration_import_units is required"),
+    ("m", None, NAMES, r"config perception\.calibration_import_world must say how the import's world"),
+    ("m", {"T_table_from_world": np.eye(3).tolist()}, NAMES, r"T_table_from_world must be a 4x4 rigid"),
+    ("m", {"table_points": [{"xyz_m": [0, 0, 0], "pixels": {"cam9": [1, 2]}}]}, NAMES,
+     r"table_points\[0\]: pixels of camera 'cam9' must be \[u, v\] px of one of the cameras"),
+    ("m", {"table_points": [{"xyz_m": [0, 0, 0], "pixels": {"cam0": [1, 2]}}] * 3}, NAMES,
+     r"table_points need >= 3 points not on one line, one camera seeing >= 3"),
+    ("m", "table", ["cam0", "left"], r"no camera\(s\) \['left'\]; the file names \['cam0', 'cam1', 'cam2', "
+                                     r"'cam3'\]"),
+])
+def test_import_config_errors_name_the_key(tmp_path, units, world, names, message):
+    export_anipose_toml(random_cameras(np.random.default_rng(12)), tmp_path / "calibration.toml")
+    with pytest.raises(CalibrationError, match=message):
+        run_import(tmp_path, tmp_path / "calibration.toml", world, units=units, names=names)
+
+
+def test_optitrack_entries_with_and_without_optitrack():
+    T_table_from_optitrack = make_transform(Rotation.random(random_state=13).as_matrix(), [0.2, -0.1, 0.9])
+    markers = apply_transform(np.linalg.inv(T_table_from_optitrack), TABLE_MARKERS)
+    poses = {f"table_marker_{i}": pd.DataFrame([dict(zip("xyz", m, strict=True))] * 3)
+             for i, m in enumerate(markers)}
+    record = optitrack_record(poses)
+    assert record["optitrack_fit_rms_m"] < 1e-12
+    np.testing.assert_allclose(table_from_optitrack(record, "c.json"), T_table_from_optitrack, atol=1e-12)
+    none = optitrack_record(None)
+    assert none["T_table_from_optitrack"] is None and none["optitrack_fit_rms_m"] is None
+    with pytest.raises(CalibrationError, match=r"c\.json: no OptiTrack-to-table transform: the lab has no "
+                                               r"OptiTrack recording"):
+        table_from_optitrack(none, "c.json")

@@ -91,8 +91,22 @@ def raw_outputs():
         expand("raw/calibration/{cam}/table.png", cam=cameras())
         + [camera_file(s, c) for s in sessions() for c in session_cameras(s)]
         + [f"raw/sessions/{s}/openpose/{c}" for s in sessions() for c in session_cameras(s)]
-        + [optitrack_path(s) for s in sessions()]
+        + [optitrack_path(s) for s in sessions() if has_optitrack()]
     )
+
+
+def calibration_captures():
+    """Every camera's table shot: needed to fit, and to check an import where the lab has them."""
+    shots = expand("raw/calibration/{cam}/table.png", cam=cameras())
+    if config["perception"]["calibration_import"] and not all(Path(s).exists() for s in shots):
+        return []
+    return shots
+
+
+def has_optitrack():
+    """Whether the sessions have OptiTrack poses (lab.optitrack_format none: a lab without motion capture,
+    whose ball and pose stages run, but which has no paddles, so no dataset)."""
+    return config["source"] == "twin" or config["lab"]["optitrack_format"] != "none"
 
 
 def optitrack_path(session):

@@ -4,8 +4,8 @@ PERCEPTION = config["perception"]
 
 rule calibration:
     input:
-        captures=expand("raw/calibration/{cam}/table.png", cam=cameras()),
-        optitrack=optitrack_path(sessions()[0]),
+        captures=calibration_captures(),
+        optitrack=[optitrack_path(sessions()[0])] if has_optitrack() else [],
     output:
         cameras="interim/calibration/cameras.json",
     params:
@@ -13,8 +13,13 @@ rule calibration:
         folders=expand("raw/calibration/{cam}", cam=cameras()),
         import_path=PERCEPTION["calibration_import"],
         import_units=PERCEPTION["calibration_import_units"],
+        import_world=PERCEPTION["calibration_import_world"],
+        board=PERCEPTION["calibration_board"],
+        fit_k3=PERCEPTION["calibration_fit_k3"],
+        source=config["source"],
+        max_rms_share=PERCEPTION["calibration_max_rms_share"],
         strict=PERCEPTION["strict_mcap"],
-        take_start_ns=motive_take_start_ns(sessions()[0]),
+        take_start_ns=motive_take_start_ns(sessions()[0]) if has_optitrack() else None,
         code=code("calibration"),
     log:
         "logs/calibration.log",

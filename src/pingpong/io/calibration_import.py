@@ -16,7 +16,9 @@ width, y along the length, z up). Anipose places its world at the first camera o
 was calibrated with; move such a calibration into the table frame with `change_world_frame`.
 Neither format defines the translation units (Pose2Sim writes metres, Anipose commonly
 millimetres), so readers and writers take `units` explicitly; the writers also record them
-(top-level `units`, TOML [metadata] units) and the readers refuse a file that states others.
+(top-level `units`, TOML [metadata] units) and the readers refuse a file that states others. The readers
+also refuse a rig that the units make implausible (`check_camera_spacing`): metres read as millimetres
+put the cameras millimetres apart.
 """
 
 import tomllib
@@ -30,6 +32,12 @@ from pingpong.common.atomic import write_text_atomic
 from pingpong.common.camera import Camera
 
 UNITS_M = {"m": 1.0, "cm": 1e-2, "mm": 1e-3}
+UNIT_NAMES = {"m": "metres", "cm": "centimetres", "mm": "millimetres"}
+# Cameras around a table stand 0.3 m (a close pair) to 30 m (the ends of a hall) apart, within 20 m of the
+# world origin (the table, a camera or the board the rig was calibrated on). A factor of 10 or 1000 in
+# the units lands outside: a calibration in metres read as mm puts the cameras 2 mm apart.
+CAMERA_SPACING_M = (0.3, 30.0)
+MAX_FROM_ORIGIN_M = 20.0
 
 OPENCV_KEYS = {
     "K": ("camera_matrix", "cameraMatrix", "K"),
@@ -85,6 +93,42 @@ def _camera(name: str, K, dist, rotation, t, width, height, scale: float, where:
                   t=t * scale, width=int(round(float(width))), height=int(round(float(height))))
 
 
+def check_camera_spacing(cameras: list[Camera], units: str, where: str) -> None:
+    """Refuse camera centres closer or farther apart, or farther from the origin, than a lab's rig can be,
+    suggesting the units that would make them plausible."""
+    centres = np.array([c.center for c in cameras])
+    names = [c.name for c in cameras]
+    problem = _spacing_problem(names, centres)
+    if problem is None:
+        return
+    rescaled = {u: centres * UNITS_M[u] / UNITS_M[units] for u in UNITS_M if u != units}
+    fits = [u for u, c in rescaled.items() if _spacing_problem(names, c) is None]
+    advice = (f"is units {units!r} right for a file in {UNIT_NAMES[fits[0]]}?" if fits
+              else "check the file's extrinsics and its units")
+    raise ValueError(f"{where}: {problem} with units {units!r}: {advice}")
+
+
+def _spacing_problem(names: list[str], centres: np.ndarray) -> str | None:
+    lo, hi = CAMERA_SPACING_M
+    far = np.linalg.norm(centres, axis=1)
+    if far.max() > MAX_FROM_ORIGIN_M:
+        c = int(far.argmax())
+        return (f"camera {names[c]} is {_length(far[c])} from the world origin (expected within "
+                f"{MAX_FROM_ORIGIN_M:g} m)")
+    for a in range(len(centres)):
+        for b in range(a + 1, len(centres)):
+            d = float(np.linalg.norm(centres[a] - centres[b]))
+            if not lo <= d <= hi:
+                return f"cameras {names[a]} and {names[b]} {_length(d)} apart (expected {lo:g} to {hi:g} m)"
+    return None
+
+
+def _length(metres: float) -> str:
+    if metres < 0.1:
+        return f"{1e3 * metres:.3g} mm"
+    return f"{metres:.3g} m" if metres < 100 else f"{metres:.0f} m"
+
+
 def change_world_frame(cameras: list[Camera], T_old_from_new: np.ndarray) -> list[Camera]:
     """Cameras with extrinsics re-expressed in a new world frame (e.g. old = Anipose's, new = table)."""
     R_on, t_on = T_old_from_new[:3, :3], T_old_from_new[:3, 3]
@@ -121,6 +165,7 @@ def read_anipose_toml(path: str | Path, *, units: str) -> list[Camera]:
                                cam["rotation"], cam["translation"], *cam["size"], scale, where))
     if not cameras:
         raise ValueError(f"{path}: no camera tables")
+    check_camera_spacing(cameras, units, str(path))
     return cameras
 
 
@@ -216,9 +261,11 @@ def read_opencv_calibration(path: str | Path, *, units: str) -> list[Camera]:
                      if root.getNode(key).isMap() and not _is_matrix(root.getNode(key))]
         if not nodes:
             raise ValueError(f"{path}: no cameras (expected a 'cameras' sequence or one map per camera)")
-        return [_opencv_camera(node, name, scale, where) for name, node, where in nodes]
+        cameras = [_opencv_camera(node, name, scale, where) for name, node, where in nodes]
     finally:
         fs.release()
+    check_camera_spacing(cameras, units, str(path))
+    return cameras
 
 
 def export_opencv_yaml(cameras: list[Camera], path: str | Path, *, units: str = "m") -> None:

@@ -1,22 +1,31 @@
-"""Rule calibration: every camera's intrinsics and table-frame extrinsics, and the OptiTrack-to-table fit."""
+"""Rule calibration: every camera's intrinsics and table-frame extrinsics, fitted on the lab's board or
+imported, checked by reprojection; and the OptiTrack-to-table fit where the lab has OptiTrack."""
 
 from pingpong.common.artifacts import write_json
-from pingpong.io.calibration_import import read_anipose_toml, read_opencv_calibration
 from pingpong.io.optitrack import read_optitrack_poses
-from pingpong.perception.calibration import calibrate_camera, camera_folder_paths, optitrack_to_table
+from pingpong.perception.calibration import (
+    fit_calibration,
+    import_calibration,
+    intrinsics_setup,
+    optitrack_record,
+)
 from pingpong.perception.schemas import CAMERAS
 
 
 def main(ctx):
     p = ctx.params
-    if p["import_path"]:  # an existing calibration, in the table frame
-        reader = read_anipose_toml if str(p["import_path"]).endswith(".toml") else read_opencv_calibration
-        cameras, reports = reader(p["import_path"], units=p["import_units"]), []
+    shots = list(ctx.input.get("captures") or [])  # every camera's table.png (p["cameras"] order), or none
+    if p["import_path"]:
+        cameras, checks = import_calibration(p["import_path"], p["import_units"], p["import_world"],
+                                             p["cameras"], dict(zip(p["cameras"], shots, strict=bool(shots))),
+                                             p["max_rms_share"])
+        record = {"reports": [], "import_checks": checks}
     else:
-        pairs = [calibrate_camera(cam, *camera_folder_paths(folder))
-                 for cam, folder in zip(p["cameras"], p["folders"], strict=True)]
-        cameras, reports = [c for c, _ in pairs], [r for _, r in pairs]
-    T, rms = optitrack_to_table(read_optitrack_poses(ctx.input.optitrack, p["strict"], p["take_start_ns"]))
-    write_json({"cameras": [c.to_dict() for c in cameras], "reports": reports,
-                "T_table_from_optitrack": T.tolist(), "optitrack_fit_rms_m": rms},
+        setup = intrinsics_setup(p["board"], p["fit_k3"], p["source"])
+        cameras, reports = fit_calibration(p["cameras"], p["folders"], setup, p["max_rms_share"])
+        record = {"reports": reports}
+    optitrack = ctx.input.get("optitrack") or None  # a list of one, or none: a lab without OptiTrack
+    optitrack = optitrack if optitrack is None or isinstance(optitrack, str) else optitrack[0]
+    poses = None if optitrack is None else read_optitrack_poses(optitrack, p["strict"], p["take_start_ns"])
+    write_json({"cameras": [c.to_dict() for c in cameras], **record, **optitrack_record(poses)},
                ctx.output.cameras, CAMERAS, ctx.provenance())
