@@ -41,12 +41,11 @@ from mcap.well_known import SchemaEncoding
 from mcap_ros2.decoder import DecoderFactory
 
 from pingpong.io import mcap_io
+from pingpong.io.jpeg import REDUCED_FLAGS, decode_jpeg
 from pingpong.io.mcap_io import McapDamagedError
 
 log = logging.getLogger(__name__)
 
-REDUCED_FLAGS = {1: cv2.IMREAD_COLOR, 2: cv2.IMREAD_REDUCED_COLOR_2, 4: cv2.IMREAD_REDUCED_COLOR_4,
-                 8: cv2.IMREAD_REDUCED_COLOR_8}
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 # schema name -> (format name, message encoding)
 IMAGE_SCHEMAS = {"foxglove.CompressedImage": ("foxglove_mcap", "protobuf"),
@@ -84,17 +83,19 @@ def _shrink(image: np.ndarray, reduction: int) -> np.ndarray:
     return cv2.resize(image, (width // reduction, height // reduction), interpolation=cv2.INTER_AREA)
 
 
-def _decode_jpeg(data: bytes, reduction: int) -> np.ndarray | None:
-    """JPEG bytes -> BGR at 1/reduction (scaled in the decoder), or None where they do not decode."""
-    return cv2.imdecode(np.frombuffer(data, np.uint8), REDUCED_FLAGS[reduction])
+def _decode_png(data: bytes, reduction: int) -> tuple[np.ndarray | None, str]:
+    try:
+        image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+    except cv2.error as err:  # an empty buffer raises rather than returning None
+        return None, f"png does not decode ({err})"
+    if image is None:
+        return None, f"{len(data)} bytes of png do not decode"
+    return _shrink(image, reduction), ""
 
 
-def _decode_png(data: bytes, reduction: int) -> np.ndarray | None:
-    image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
-    return None if image is None else _shrink(image, reduction)
-
-
-COMPRESSED_DECODERS = {"jpeg": _decode_jpeg, "png": _decode_png}
+# (image | None, '' or the decoder's complaint); JPEG through decode_jpeg, which reports damage that
+# cv2.imdecode would repair silently, and shrinks in the decoder (libjpeg's DCT scaling)
+COMPRESSED_DECODERS = {"jpeg": decode_jpeg, "png": _decode_png}
 
 
 @dataclass(frozen=True)
@@ -112,13 +113,7 @@ class CameraFrame:
     def decode(self, reduction: int = 1) -> tuple[np.ndarray | None, str]:
         """(BGR image at 1/reduction of the full size, or None; '' or why it did not decode cleanly)."""
         _check_reduction(reduction)
-        try:
-            image = COMPRESSED_DECODERS[self.encoding](self.data, reduction)
-        except cv2.error as err:  # an empty buffer raises rather than returning None
-            return None, f"{self.encoding} does not decode ({err})"
-        if image is None:
-            return None, f"{len(self.data)} bytes of {self.encoding} do not decode"
-        return image, ""
+        return COMPRESSED_DECODERS[self.encoding](self.data, reduction)
 
 
 @dataclass(frozen=True)
