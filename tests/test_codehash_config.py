@@ -113,7 +113,7 @@ def test_wrong_type_names_key_and_type():
 def test_shipped_configs_are_valid():
     import yaml
 
-    for name in ("config.yaml", "paper.yaml"):
+    for name in ("config.yaml", "paper.yaml", "paper_net.yaml", "twice_the_hits.yaml", "test/tiny.yaml"):
         path = ROOT / "config" / name
         validate_config(yaml.safe_load(path.read_text()) or {}, SCHEMA)
 
