@@ -161,8 +161,8 @@ def test_what_c_code_writes_on_fd2_reaches_the_stage_log(tmp_path):
     """run_rule points file descriptor 2 at the rule's log: libjpeg's and FFmpeg's warnings land there."""
     script = textwrap.dedent("""
         import os, sys
-        from pingpong.common.script import stderr_fd_to
-        with open(sys.argv[1], "w", buffering=1) as log, stderr_fd_to(log.fileno()):
+        from pingpong.common.stderr import fd2_onto
+        with open(sys.argv[1], "w", buffering=1) as log, fd2_onto(log.fileno()):
             os.write(2, b"Corrupt JPEG data: 3 extraneous bytes\\n")
         os.write(2, b"after the block\\n")
     """)

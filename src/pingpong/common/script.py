@@ -11,7 +11,6 @@ import contextlib
 import importlib
 import json
 import logging
-import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,6 +18,7 @@ from pathlib import Path
 import pingpong
 from pingpong.common.artifacts import Provenance
 from pingpong.common.stages import entry_file, entry_module
+from pingpong.common.stderr import fd2_onto
 
 
 class Named(dict):
@@ -93,21 +93,6 @@ def pin_threads(threads: int) -> None:
         torch.set_num_threads(max(1, int(threads)))
 
 
-@contextlib.contextmanager
-def stderr_fd_to(target_fd: int):
-    """File descriptor 2 onto target_fd for the block: what C libraries print (libjpeg's "Corrupt JPEG
-    data", FFmpeg's decoder messages) lands in the stage's log, not only Python's sys.stderr."""
-    sys.stderr.flush()
-    saved = os.dup(2)
-    os.dup2(target_fd, 2)
-    try:
-        yield
-    finally:
-        sys.stderr.flush()
-        os.dup2(saved, 2)
-        os.close(saved)
-
-
 def check_checkout(root: Path) -> None:
     """The imported `pingpong` must be the checkout's own `src/`: the code hash is computed from there."""
     imported = Path(pingpong.__file__).resolve().parent
@@ -132,7 +117,7 @@ def run_rule(smk=None) -> None:
             ctx.log.parent.mkdir(parents=True, exist_ok=True)
             stream = stack.enter_context(open(ctx.log, "w", buffering=1))  # line-buffered: in order with fd 2
             stack.enter_context(contextlib.redirect_stderr(stream))
-            stack.enter_context(stderr_fd_to(stream.fileno()))
+            stack.enter_context(fd2_onto(stream.fileno()))
         else:
             stream = sys.stderr
         logging.basicConfig(stream=stream, level=logging.INFO, force=True,

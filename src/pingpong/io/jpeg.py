@@ -23,12 +23,13 @@ shown): decodes hold a lock among themselves, and the decode itself takes millis
 
 import atexit
 import os
-import sys
 import tempfile
 import threading
 
 import cv2
 import numpy as np
+
+from pingpong.common.stderr import fd2_onto
 
 REDUCED_FLAGS = {1: cv2.IMREAD_COLOR, 2: cv2.IMREAD_REDUCED_COLOR_2, 4: cv2.IMREAD_REDUCED_COLOR_4,
                  8: cv2.IMREAD_REDUCED_COLOR_8}
@@ -51,18 +52,12 @@ def _imdecode_capturing(data: bytes, flag: int) -> tuple[np.ndarray | None, list
     """(cv2.imdecode's image or None, the lines the decoder wrote on fd 2 and its exception, if any)."""
     with _LOCK:
         capture = _capture_fd()
-        if sys.__stderr__ is not None:
-            sys.__stderr__.flush()  # Python's own pending text goes where it was meant to, not in here
-        saved = os.dup(2)
         image, raised = None, []
-        try:
-            os.dup2(capture, 2)
-            image = cv2.imdecode(np.frombuffer(data, np.uint8), flag)
-        except cv2.error as err:
-            raised = [f"does not decode ({str(err).strip()})"]
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
+        with fd2_onto(capture):
+            try:
+                image = cv2.imdecode(np.frombuffer(data, np.uint8), flag)
+            except cv2.error as err:
+                raised = [f"does not decode ({str(err).strip()})"]
         written = os.lseek(capture, 0, os.SEEK_CUR)  # fd 2 shared the capture file's offset
         text = ""
         if written:

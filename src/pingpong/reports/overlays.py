@@ -12,12 +12,12 @@ import numpy as np
 import pandas as pd
 
 from pingpong.common.camera import Camera
-from pingpong.frames import MODEL_BONES, MODEL_JOINT_IDS
+from pingpong.curation.tracks import JOINT_XYZ
+from pingpong.frames import MODEL_BONES
 
 log = logging.getLogger(__name__)
 BALL_BGR, DETECTION_BGR = (0, 255, 0), (255, 0, 255)
 PLAYER_BGR = {"near": (0, 140, 255), "far": (255, 200, 0)}
-JOINT_XYZ = [[f"j{j:02d}_{a}" for a in "xyz"] for j in MODEL_JOINT_IDS]
 
 
 def overlay_times(ball3d: pd.DataFrame, n_frames: int) -> np.ndarray:
@@ -59,7 +59,7 @@ def frame_points(time_ns: int, ball3d: pd.DataFrame, pose3d: pd.DataFrame, detec
     ball = ball3d.loc[ball3d["time_ns"] == time_ns, ["x", "y", "z"]].to_numpy(float)
     det = detections.loc[detections["time_ns"] == time_ns, ["u", "v"]].to_numpy(float)
     rows = pose3d[pose3d["time_ns"] == time_ns]
-    joints = {p: rows.loc[rows["player"] == p, sum(JOINT_XYZ, [])].to_numpy(float).reshape(-1, 3)
+    joints = {p: rows.loc[rows["player"] == p, JOINT_XYZ].to_numpy(float).reshape(-1, 3)
               for p in PLAYER_BGR if (rows["player"] == p).any()}
     return (ball[0] if len(ball) else np.full(3, np.nan), det[0] if len(det) else np.full(2, np.nan),
             joints)
