@@ -90,26 +90,28 @@ def test_strike_point():
 
 # --- frame indexing -------------------------------------------------------------------------------
 
-def test_prediction_frames_are_the_30_before_the_hit():
+def test_prediction_frames_run_from_30_before_the_hit_to_the_hit():
     n_frames = 40
     out = torch.arange(n_frames, dtype=torch.float32)[None, :, None].expand(2, -1, 3)
     cols = prediction_frames(out)[0, :, 0].numpy()
-    np.testing.assert_array_equal(cols, n_frames - 1 - FRAMES_BEFORE_HIT)  # indices 9 .. 38; 39 = hit
-    assert FRAMES_BEFORE_HIT[0] == 30 and FRAMES_BEFORE_HIT[-1] == 1
+    np.testing.assert_array_equal(cols, n_frames - 1 - FRAMES_BEFORE_HIT)  # indices 9 .. 39; 39 = hit
+    assert FRAMES_BEFORE_HIT[0] == 30 and FRAMES_BEFORE_HIT[-1] == 0
     mask = prediction_mask(torch.tensor([40, 5]), n_frames)
-    assert mask[0].sum() == N_PRED_FRAMES and not mask[0, -1]
-    assert mask[1].nonzero().flatten().tolist() == [35, 36, 37, 38]  # 5 real frames, the hit not used
+    assert mask[0].sum() == N_PRED_FRAMES + 1 and mask[0, -1]
+    assert mask[1].nonzero().flatten().tolist() == [35, 36, 37, 38, 39]  # 5 real frames, the hit's included
     short = prediction_frames(torch.zeros(1, 30, 3))  # T = 30: nothing exists 30 frames before the hit
     assert torch.isnan(short[0, 0]).all() and not torch.isnan(short[0, 1:]).any()
 
 
-def test_prediction_does_not_see_the_hit_frame():
+def test_a_prediction_sees_its_own_frame_and_none_after():
     rng = np.random.default_rng(1)
     X, _ = _random_set(rng, 3)
     net = AnticipationNet("gru", **TINY)
     before = predict(net, X)
-    X[:, -1] += 100.0
-    np.testing.assert_array_equal(predict(net, X), before)
+    X[:, -1] += 100.0  # the hit frame: only the last prediction (t = 0) sees it
+    after = predict(net, X)
+    np.testing.assert_array_equal(after[:, :-1], before[:, :-1])
+    assert np.all(np.abs(after[:, -1] - before[:, -1]).max(axis=-1) > 0)
 
 
 @pytest.mark.parametrize("velocity", [False, True])
@@ -237,7 +239,7 @@ def test_learns_more_as_the_hit_approaches():
     train(net, X[:300], Y[:300], X[300:], Y[300:], lr=1e-2, batch_size=50, max_epochs=40, patience=10,
           seed=0, device="cpu", progress=False)
     error = np.abs(strike_points(predict(net, X[300:])) - strike_points(Y[300:, None, :])).mean(0)
-    thirds = error.reshape(3, 10).mean(1)  # t = -30..-21, -20..-11, -10..-1
+    thirds = error[:30].reshape(3, 10).mean(1)  # t = -30..-21, -20..-11, -10..-1 (0 left out)
     assert thirds[0] > thirds[1] > thirds[2]
     assert error[-1] < 0.4 * error[0]
 

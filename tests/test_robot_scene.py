@@ -16,7 +16,7 @@ from workflow_util import ROBOT_LIMITS, ROBOT_URDF
 from pingpong.frames import FRAME_NS, N_INPUT, STRIKE_Y
 from pingpong.robot.controllers import Controller
 from pingpong.robot.evaluate import Prediction, SimSettings, simulate_hit
-from pingpong.robot.flights import hit_flight
+from pingpong.robot.flights import HitFlight, hit_flight
 from pingpong.robot.model import PADDLE_RADIUS, frame_pose, load_robot
 from pingpong.robot.scene import (
     TOPICS,
@@ -33,7 +33,7 @@ VISUALS = robot_visuals(ROBOT)
 CAMERA_NS = 1_700_000_000_000_000_000 + FRAME_NS * np.arange(150)  # the session's camera clock
 HIT_FRAME = 50
 N_FRAMES = 40
-FRAMES = np.arange(-30, 0)
+FRAMES = np.arange(-30, 1)
 CONTROLLER = Controller("anticipatory", 1.0, 1.0)  # moves before the hit, so the paddle path is not trivial
 SETTINGS = SimSettings()
 
@@ -48,7 +48,7 @@ def synthetic_hit(offset_ns: int, strike_x: float = 0.45):
     ball[t < 0] = np.nan
     ball[HIT_FRAME + 5] = np.nan  # a frame without a ball
     table = pd.DataFrame({"time_ns": CAMERA_NS, "x": ball[:, 0], "y": ball[:, 1], "z": ball[:, 2]})
-    flight = hit_flight(table, t_hit, "near")
+    flight = HitFlight(*hit_flight(table, t_hit, "near"), *hit_flight(table, t_hit, "near"))
     k = np.arange(N_FRAMES)
     x = np.zeros((N_FRAMES, N_INPUT))
     joints = np.array([[0.2, 1.9, 0.6], [0.4, 1.8, 0.4], [0.5, 1.6, 0.3], [-0.2, 1.9, 0.6],
@@ -121,7 +121,8 @@ def test_scene_mcap_holds_foxglove_channels_on_the_camera_clock(scene_file):
 
 
 def test_scene_ball_is_the_episodes_ball(scene_file):
-    _, hit, (times, positions), (_, _, messages) = scene_file
+    _, hit, flight, (_, _, messages) = scene_file
+    times, positions = flight.times, flight.positions
     balls = {t: entity(m, "ball") for topic, t, m in messages if topic == "/ball"}
     flight_ns = hit.t_hit_ns + np.rint(times * 1e9).astype(np.int64)
     for t, p in zip(flight_ns, positions, strict=True):
@@ -134,9 +135,8 @@ def test_scene_ball_is_the_episodes_ball(scene_file):
 
 def test_scene_paddle_is_the_simulated_robots_pinocchio_paddle(scene_file):
     """The hit falls on a frame here, so the frames are the control steps (10 ms from -0.1 s)."""
-    _, hit, (times, positions), (_, _, messages) = scene_file
-    out = simulate_hit(ROBOT, times, positions, Prediction(FRAMES, np.full(len(FRAMES), 0.45)), CONTROLLER,
-                       SETTINGS)
+    _, hit, flight, (_, _, messages) = scene_file
+    out = simulate_hit(ROBOT, flight, Prediction(FRAMES, np.full(len(FRAMES), 0.45)), CONTROLLER, SETTINGS)
     robot = {(t - hit.t_hit_ns) / 1e9: m for topic, t, m in messages if topic == "/robot"}
     checked = 0
     for t, q, paddle in zip(out["times"], out["q"], out["paddle"], strict=True):
@@ -172,7 +172,8 @@ def test_opponent_shows_while_the_input_has_joints(scene_file):
 
 
 def test_a_hit_between_frames_keeps_the_camera_clock_and_the_flight():
-    scene, hit, (times, positions) = make_scene(offset_ns=3_700_000)
+    scene, hit, flight = make_scene(offset_ns=3_700_000)
+    times, positions = flight.times, flight.positions
     assert set(scene.log_times) <= set(CAMERA_NS)
     assert np.allclose(scene.times, (scene.log_times - hit.t_hit_ns) / 1e9)
     flight_ns = hit.t_hit_ns + np.rint(times * 1e9).astype(np.int64)

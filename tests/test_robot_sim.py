@@ -12,6 +12,7 @@ from workflow_util import ROBOT_LIMITS, ROBOT_URDF
 
 from pingpong.frames import STRIKE_Y
 from pingpong.reports.robot import bootstrap_hit_difference, mcnemar_exact, robot_table
+from pingpong.robot.control import ControlParams
 from pingpong.robot.controllers import CONTROLLERS, Controller, Tuning, alpha_grid, controller_names
 from pingpong.robot.episode import EpisodeParams
 from pingpong.robot.evaluate import (
@@ -21,22 +22,30 @@ from pingpong.robot.evaluate import (
     simulate_hit,
     step_alphas,
 )
-from pingpong.robot.flights import hit_flight
+from pingpong.robot.flights import HitFlight, hit_flight
 from pingpong.robot.model import N_BASE, load_robot, worst_case_accelerations
 from pingpong.robot.sweep import best_cell, choose_controller, sweep
 
-ROBOT = load_robot(ROBOT_URDF, ROBOT_LIMITS)
-FRAMES = np.arange(-30, 0)
+ROBOT = load_robot(ROBOT_URDF, ROBOT_LIMITS)  # the paper's Table 6 accelerations
+DRAKE = load_robot(ROBOT_URDF, ROBOT_LIMITS, "drake")  # Drake's, 7-635x lower
+FRAMES = np.arange(-30, 1)
+# the fine timing (config robot.timings.fine): 10 ms steps, 100 ms latency on top, a goal every frame
+FINE = SimSettings(EpisodeParams(anticipation_period_frames=1, latency_frames=10, servo_fit="paper",
+                                 control=ControlParams(dt=0.01)))
+PAPER = SimSettings(EpisodeParams(servo_fit="paper"))  # the paper's timing and servo fit
 
 
-def straight_flight(x: float, z: float, t_cross: float, y0: float = 1.6):
-    """A ball at constant velocity along -y (no gravity, no bounce): the servo's quadratic fit is exact."""
+def straight_flight(x: float, z: float, t_cross: float, y0: float = 1.6) -> HitFlight:
+    """A ball at constant velocity along -y (no gravity, no bounce), seen as it is: the paper's quadratic
+    servo fit is exact on it (the model fit assumes gravity and drag)."""
     t = np.arange(0.0, t_cross + 0.05, 0.01)
-    return t, np.column_stack([np.full_like(t, x), y0 + (STRIKE_Y - y0) / t_cross * t, np.full_like(t, z)])
+    p = np.column_stack([np.full_like(t, x), y0 + (STRIKE_Y - y0) / t_cross * t, np.full_like(t, z)])
+    return HitFlight(t, p, t, p)
 
 
 def perfect(x: float, uncertainty: float | None = None) -> Prediction:
-    return Prediction(FRAMES, np.full(30, x), None if uncertainty is None else np.full(30, uncertainty))
+    n = len(FRAMES)
+    return Prediction(FRAMES, np.full(n, x), None if uncertainty is None else np.full(n, uncertainty))
 
 
 # ---------------------------------------------------------------- flights
@@ -60,24 +69,25 @@ def test_far_hitters_flight_is_mirrored_gaps_dropped_and_cut_past_the_strike_lin
 
 def test_servo_hits_a_straight_ball_to_a_reachable_point():
     for x, z in [(0.3, 0.3), (-0.4, 0.2), (0.0, 0.1)]:
-        out = simulate_hit(ROBOT, *straight_flight(x, z, 0.7), perfect(x), Controller("servo"))
+        out = simulate_hit(ROBOT, straight_flight(x, z, 0.7), perfect(x), Controller("servo"), PAPER)
         assert out["hit"] and out["end_distance_m"] < 0.01  # the servo's estimate is exact here
         assert out["limits_ok"] and not out["anticipated"]
 
 
 def test_perfect_anticipation_hits_far_goals_that_servoing_alone_misses():
+    # the slow regime (Drake's accelerations, the fine timing's 100 ms latency on top)
     flights = [(0.6, 0.2), (-0.7, 0.2), (0.65, 0.15), (-0.6, 0.25)]
     hits = {"servo": 0, "anticipatory": 0}
     for x, z in flights:
         for controller in (Controller("servo"), Controller("anticipatory", 1.0, 1.0)):
-            out = simulate_hit(ROBOT, *straight_flight(x, z, 0.45), perfect(x), controller)
+            out = simulate_hit(DRAKE, straight_flight(x, z, 0.45), perfect(x), controller, FINE)
             assert out["limits_ok"]
             hits[controller.name] += out["hit"]
     assert hits["servo"] == 0 and hits["anticipatory"] == len(flights)
 
 
 def test_step_alphas_follow_each_controllers_rule():
-    params = EpisodeParams()
+    params = FINE.episode
     times = np.round(np.arange(-0.1, 0.5, 0.01), 10)
     x = np.where(FRAMES < -15, 0.6, 0.1)  # outside the centre until frame -16, then inside
     uncertainty = np.where(FRAMES < -5, 0.30, 0.05)
@@ -93,6 +103,19 @@ def test_step_alphas_follow_each_controllers_rule():
         frame = latest(t)
         assert a == pytest.approx((0.7 if t < -1e-12 else 0.4) * (frame < -15))
         assert c == (1.0 if frame >= -5 else 0.0)
+
+
+def test_paper_timing_moves_on_the_predictions_of_t_minus_10_and_0_only():
+    params = SimSettings().episode  # the paper's: 0.1 s steps, no latency on top, goals at 10 Hz
+    times = np.array([-0.1, 0.0, 0.1, 0.2])
+    x = np.where(FRAMES == -10, 0.6, np.where(FRAMES == 0, -0.6, 0.0))  # centre everywhere else
+    aware = step_alphas(times, 0.1, Prediction(FRAMES, x), Controller("u", 0.6, 1.0, skip_centre=True),
+                        params)
+    # alpha1 on t = -10's prediction over [-0.1, 0), alpha2 on t = 0's over [0, 0.1), then the servo
+    np.testing.assert_array_equal(aware, [0.6, 1.0, 1.0, 1.0])
+    early = step_alphas(times, 0.1, Prediction(FRAMES, np.where(FRAMES == -10, 0.0, 0.6)),
+                        Controller("u", 0.6, 1.0, skip_centre=True), params)
+    np.testing.assert_array_equal(early, [0.0, 1.0, 1.0, 1.0])  # t = -10 in the centre: no move before 0
 
 
 @settings(max_examples=100)
@@ -118,7 +141,7 @@ def test_sweep_picks_the_alphas_that_hit_the_far_goals():
     hits = pd.DataFrame({"session": "s", "rally": 0, "hit": range(3), "region": "x", "strike_x": 0.0,
                          "strike_z": 0.0})
     candidates = alpha_grid("u", Tuning([0.0, 1.0], []))
-    chosen, table = sweep(ROBOT, hits, flights, [perfect(x) for x, _ in goals], candidates, SimSettings())
+    chosen, table = sweep(DRAKE, hits, flights, [perfect(x) for x, _ in goals], candidates, FINE)
     assert len(table) == 4 and table["hits"].max() == 3
     assert table.loc[(table["alpha1"] == 0) & (table["alpha2"] == 0), "hits"].item() == 1  # servo: slow only
     row = table[(table["alpha1"] == chosen.alpha1) & (table["alpha2"] == chosen.alpha2)].iloc[0]
@@ -177,7 +200,7 @@ def test_derived_accelerations_at_the_upright_arm_match_a_hand_computation():
     assert acc["coupled_min"][6] == pytest.approx(acc["simple_min"][6], rel=1e-9)  # no coupling about z
     sampled = worst_case_accelerations(ROBOT, np.random.default_rng(1), n_samples=200)
     assert np.all(sampled["coupled_min"] > 0)
-    assert np.all(ROBOT.a_max[N_BASE:] < sampled["coupled_min"])
+    assert np.all(DRAKE.a_max[N_BASE:] < sampled["coupled_min"])  # Drake's are reachable everywhere
 
 
 def test_controllers_come_from_the_registry():

@@ -220,8 +220,22 @@ def test_gaps_in_a_kept_window_are_forward_filled(run):
     last = N_FRAMES - 1
     assert np.array_equal(after[0, last - 5, -3:], before[0, last - 6, -3:])  # held from the frame before
     assert np.array_equal(after[0, last - 4, -3:], before[0, last - 6, -3:])
-    assert np.array_equal(after[0, 0, -3:], before[0, 1, -3:])  # a gap at the start takes the first seen
+    # a gap at the window's start holds the last ball seen before the window (forward fill over the session)
+    seen_before = ball.loc[:i - N_FRAMES, ["x", "y", "z"]].dropna().to_numpy(float)[-1]
+    if kept["hitter"].iloc[0] == "far":
+        seen_before = mirror_points(seen_before)
+    assert np.allclose(after[0, 0, -3:], seen_before, atol=1e-6)
     assert n_filled[0] >= 3
+
+
+def test_a_gap_with_nothing_seen_before_takes_the_first_seen_value(run):
+    kept = run["segments"][run["segments"]["decision"] == "kept"].iloc[:1]
+    ball = run["ball"].copy()
+    i = int(kept["hit_frame"].iloc[0])
+    before, _ = input_sequences(kept, ball, run["pose"], run["paddle"], N_FRAMES)
+    ball.loc[:i - N_FRAMES + 1, ["x", "y", "z"]] = np.nan  # no ball from the session's start to the window's
+    after, _ = input_sequences(kept, ball, run["pose"], run["paddle"], N_FRAMES)
+    assert np.array_equal(after[0, 0, -3:], before[0, 1, -3:])
 
 
 def test_dataset_survives_a_parquet_round_trip(run, tmp_path):

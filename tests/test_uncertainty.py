@@ -132,10 +132,11 @@ def test_error_head_learns_which_hits_are_hard(tmp_path):
     rng = np.random.default_rng(11)
     n = 300
     X = rng.normal(size=(n, 40, 39)).astype(np.float32)
-    hard = X[:, -31:-1, 0].mean(axis=1) > 0  # visible over the prediction frames
-    X[:, -31:-1, 0] += np.where(hard, 1.0, -1.0)[:, None]
-    errors = np.abs(rng.normal(size=(n, 30))) * np.where(hard, 0.5, 0.05)[:, None]
-    pred = rng.normal(0, 0.3, size=(n, 30))
+    k = len(FRAMES_BEFORE_HIT)  # the prediction frames t = -30 .. 0
+    hard = X[:, -k:, 0].mean(axis=1) > 0  # visible over the prediction frames
+    X[:, -k:, 0] += np.where(hard, 1.0, -1.0)[:, None]
+    errors = np.abs(rng.normal(size=(n, k))) * np.where(hard, 0.5, 0.05)[:, None]
+    pred = rng.normal(0, 0.3, size=(n, k))
     net = head.fit_error_head(X[:150], pred[:150], errors[:150], rng, epochs=30)
     u = head.predict_error(net, X[150:], pred[150:])
     frames = np.tile(FRAMES_BEFORE_HIT, 150)
@@ -143,7 +144,7 @@ def test_error_head_learns_which_hits_are_hard(tmp_path):
     head.save(net, tmp_path / "head", Provenance.of("uncertainty"))
     assert np.allclose(head.predict_error(head.load(tmp_path / "head"), X[150:], pred[150:]), u)
     with pytest.raises(ValueError, match="finite"):
-        head.fit_error_head(X[:10], pred[:10], np.full((10, 30), np.nan), rng)
+        head.fit_error_head(X[:10], pred[:10], np.full((10, k), np.nan), rng)
 
 
 def test_spearman_and_within_frame_hand_computed():
@@ -194,14 +195,18 @@ def test_knn_time_trend_and_features():
     assert trend(0.05, -0.01, [1, 10]).tolist() == [pytest.approx(0.04), 0.0]
     X = np.random.default_rng(6).normal(size=(2, 40, 39))
     F = frame_features(X, FRAMES_BEFORE_HIT)
-    j = 5  # row n * 30 + j is FRAMES_BEFORE_HIT[j] frames before the hit
+    k = len(FRAMES_BEFORE_HIT)
+    j = 5  # row n * k + j is FRAMES_BEFORE_HIT[j] frames before the hit
     f = FRAMES_BEFORE_HIT[j]
-    assert F.shape == (60, 79) and np.allclose(F[30 + j, :39], X[1, 39 - f])
-    assert np.allclose(F[30 + j, 39:78], 100 * (X[1, 39 - f] - X[1, 38 - f])) and F[30 + j, 78] == f
+    assert F.shape == (2 * k, 79) and np.allclose(F[k + j, :39], X[1, 39 - f])
+    assert np.allclose(F[k + j, 39:78], 100 * (X[1, 39 - f] - X[1, 38 - f])) and F[k + j, 78] == f
 
 
 SETTINGS = UncertaintySettings(ensemble_size=3, coverage=0.9, knn_k=5, quantile_hidden=32, quantile_epochs=20,
                                error_head_hidden=16, error_head_epochs=2)
+
+
+K = len(FRAMES_BEFORE_HIT)  # predictions per hit
 
 
 def toy_hits(n=60, seed=7) -> Hits:
@@ -212,9 +217,9 @@ def toy_hits(n=60, seed=7) -> Hits:
                             "strike_x": rng.uniform(-0.7, 0.7, n)})
     X = rng.normal(size=(n, 40, 39))
     rows = frame_rows(dataset, pd.DataFrame({
-        "model": "final", "session": "s00", "rally": np.repeat(np.arange(n), 30),
-        "hit": np.repeat(np.arange(n), 30), "frames_before_hit": np.tile(FRAMES_BEFORE_HIT, n),
-        "a1": 0.0, "a2": 0.0, "b": 0.0, "strike_x_pred": rng.normal(0, 0.3, 30 * n)}))
+        "model": "final", "session": "s00", "rally": np.repeat(np.arange(n), K),
+        "hit": np.repeat(np.arange(n), K), "frames_before_hit": np.tile(FRAMES_BEFORE_HIT, n),
+        "a1": 0.0, "a2": 0.0, "b": 0.0, "strike_x_pred": rng.normal(0, 0.3, K * n)}))
     ensemble = rows["strike_x_pred"].to_numpy() + rng.normal(0, 0.05, size=(3, len(rows)))
     return Hits(rows, frame_features(X, FRAMES_BEFORE_HIT), X, ensemble)
 
@@ -226,7 +231,7 @@ def test_fit_estimators_on_a_toy_dataset():
     assert list(tables) == list(ESTIMATORS) and fitted["knn"].model.k == 5 and record["knn"] == {"k": 5}
     assert -1 <= record["diagnostics"]["member_error_spearman_within_frame"] <= 1
     for name, table in tables.items():
-        assert len(table) == 30 * 30 and set(table["split"]) == {"calibration", "test"}
+        assert len(table) == 30 * K and set(table["split"]) == {"calibration", "test"}
         assert (table["uncertainty"] >= 0).all(), name
         interval = table["lower"].notna()
         assert (table.loc[interval, "lower"] <= table.loc[interval, "upper"]).all()

@@ -18,11 +18,12 @@ N_HITS = 60
 
 
 def _tables(rng):
-    n = N_HITS * len(FRAMES_BEFORE_HIT)
-    base = pd.DataFrame({"session": "s00", "rally": np.repeat(np.arange(N_HITS), 30), "hit": 0,
+    k = len(FRAMES_BEFORE_HIT)
+    n = N_HITS * k
+    base = pd.DataFrame({"session": "s00", "rally": np.repeat(np.arange(N_HITS), k), "hit": 0,
                          "split": "test", "frames_before_hit": np.tile(FRAMES_BEFORE_HIT, N_HITS),
                          "strike_x": rng.uniform(-0.7, 0.7, n)})
-    err = np.abs(rng.normal(0, 0.1, n)) * rng.lognormal(0, 0.7, N_HITS).repeat(30)
+    err = np.abs(rng.normal(0, 0.1, n)) * rng.lognormal(0, 0.7, N_HITS).repeat(k)
     base["strike_x_pred"] = base["strike_x"] + err * rng.choice([-1, 1], n)
     base["abs_error"] = err
 

@@ -23,7 +23,7 @@ FRAME_NS = 10_000_000  # one camera frame in ns
 
 STRIKE_Y = -1.40  # the robot's strike line, m
 REGION_EDGE_X = 0.25  # left < -0.25 <= centre <= 0.25 < right
-N_PRED_FRAMES = 30  # the model predicts at each of the last 30 frames before the hit
+N_PRED_FRAMES = 30  # the model predicts at each frame from 30 before the hit to the hit itself (31 frames)
 
 # OpenPose BODY_25 keypoint order.
 BODY25 = (
@@ -35,7 +35,8 @@ MODEL_JOINTS = ("RShoulder", "RElbow", "RWrist", "LShoulder", "LElbow", "LWrist"
 MODEL_JOINT_IDS = tuple(BODY25.index(j) for j in MODEL_JOINTS)
 # the model joints' skeleton, as index pairs into MODEL_JOINTS: arms, shoulders, sides, hips
 MODEL_BONES = ((0, 1), (1, 2), (3, 4), (4, 5), (0, 3), (0, 6), (3, 7), (6, 7))
-N_INPUT = 3 * len(MODEL_JOINTS) + 3 + 9 + 3  # 39 values per frame
+N_JOINT_VALUES = 3 * len(MODEL_JOINTS)  # the first 24 of a frame's values
+N_INPUT = N_JOINT_VALUES + 3 + 9 + 3  # 39 values per frame
 ROT_COLUMNS = tuple(f"r{i}{j}" for i in range(3) for j in range(3))  # a rotation matrix, row-major
 
 

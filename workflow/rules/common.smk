@@ -136,7 +136,7 @@ REPORT_TABLES = {
     "curation": ["curation", *(["curation_accuracy"] if TWIN_ONLY else [])],
     "learning": ["cv_results", "strike_error", "strike_error_by_frame"],
     "uncertainty": ["uncertainty", "uncertainty_verdict", "uncertainty_by_frame"],
-    "robot": ["robot", "robot_limits"],
+    "robot": ["robot", "robot_limits", "robot_ablation", "servo_accuracy"],
 }
 
 

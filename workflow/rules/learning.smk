@@ -50,9 +50,15 @@ rule select_model:
         STAGE_SCRIPT
 
 
+# final_{OTHER_INPUTS}: the selected configuration refit on the other kind of inputs (curation.smk), so
+# Table 1 and the robot ablation compare causal and zero-phase inputs on the same hits
+OTHER_FINAL = f"final_{OTHER_INPUTS}"
+
+
 rule train_final:
     input:
-        dataset="processed/dataset.parquet",
+        dataset=lambda wc: f"processed/dataset_{OTHER_INPUTS}.parquet" if wc.variant == OTHER_FINAL
+        else "processed/dataset.parquet",
         selection="processed/models/selection.json",
     output:
         model="processed/models/{variant}.safetensors",
@@ -63,7 +69,7 @@ rule train_final:
         seed=config["seed"],
         code=code("train_final"),
     wildcard_constraints:
-        variant="final|ball_only",
+        variant=f"final|ball_only|{OTHER_FINAL}",
     resources:
         gpu=1 if config["device"] == "cuda" else 0,
     log:
@@ -79,13 +85,16 @@ rule train_final:
 rule predict:
     input:
         dataset="processed/dataset.parquet",
+        other_dataset=f"processed/dataset_{OTHER_INPUTS}.parquet",
         selection="processed/models/selection.json",
         final="processed/models/final.safetensors",
         ball_only="processed/models/ball_only.safetensors",
+        other_final=f"processed/models/{OTHER_FINAL}.safetensors",
         cv_models=expand("processed/models/cv/{config_id}/fold{fold}.safetensors", config_id=GRID, fold=FOLDS),
     output:
         predictions="processed/predictions.parquet",
     params:
+        other_final=OTHER_FINAL,
         code=code("predict"),
     log:
         "logs/predict.log",

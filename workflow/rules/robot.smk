@@ -6,9 +6,13 @@ from pingpong.robot.controllers import CONTROLLERS, controller_names
 ROBOT = config["robot"]
 # the registered controllers; those that follow an estimator only when one is configured
 ROBOT_CONTROLLERS = controller_names(with_uncertainty=ROBOT["estimator"] is not None)
-ROBOT_SETTINGS = {k: ROBOT[k] for k in ("anticipation_start_frame", "servo_start_frame", "servo_period_frames",
-                                        "latency_frames", "control_dt_s", "alpha_grid", "confidence_quantiles",
-                                        "max_flight_s")}
+ROBOT_SETTINGS = {k: ROBOT[k] for k in ("accelerations", "timing", "timings", "servo_fit", "alpha_grid",
+                                        "confidence_quantiles", "max_flight_s")}
+# the ball as visual servoing sees it: the causal inputs' measurements (flights.py); with zero-phase inputs,
+# the filtered ball the hits are judged on
+SEEN_BALLS = expand("interim/causal/{session}_ball.parquet", session=sessions()) if INPUTS == "causal" else []
+if ROBOT["timing"] not in ROBOT["timings"]:
+    raise ValueError(f"config robot.timing '{ROBOT['timing']}' is not one of robot.timings {sorted(ROBOT['timings'])}")
 
 
 rule simulate_robot:
@@ -16,6 +20,7 @@ rule simulate_robot:
         dataset="processed/dataset.parquet",
         predictions="processed/predictions.parquet",
         balls=expand("interim/filtered/{session}_ball.parquet", session=sessions()),
+        seen_balls=SEEN_BALLS,
         # the robot's description: read from these inputs, so an edit to either reruns the rule
         limits="config/robot/limits.yaml",
         urdf="config/robot/iiwa14_ridgeback.urdf",
@@ -31,6 +36,7 @@ rule simulate_robot:
     params:
         controller="{controller}",
         sessions=sessions(),
+        seen_cutoff_hz=CURATION["causal_cutoff_ball_hz"],
         code=code("simulate_robot"),
         settings=ROBOT_SETTINGS,
     wildcard_constraints:
@@ -61,6 +67,9 @@ rule report_robot:
         seed=config["seed"],
         n_bootstrap=ROBOT["n_bootstrap"],
         limit_samples=ROBOT["limit_samples"],
+        accelerations=ROBOT["accelerations"],
+        setting=(f"accelerations {ROBOT['accelerations']}, timing {ROBOT['timing']} {ROBOT['timings'][ROBOT['timing']]}, "
+                 f"servo fit {ROBOT['servo_fit']}, inputs {INPUTS}"),
         code=code("report_robot"),
     log:
         "logs/report_robot.log",
@@ -75,6 +84,7 @@ rule robot_scene:
         dataset="processed/dataset.parquet",
         predictions="processed/predictions.parquet",
         balls=expand("interim/filtered/{session}_ball.parquet", session=sessions()),
+        seen_balls=SEEN_BALLS,
         uncertainty=[f"processed/uncertainty/{ROBOT['estimator']}.parquet"] if ROBOT["estimator"] else [],
         sims=expand("processed/sim/{controller}.parquet", controller=ROBOT_CONTROLLERS),
         choices=expand("processed/sim/{controller}.json", controller=ROBOT_CONTROLLERS),
@@ -90,10 +100,42 @@ rule robot_scene:
         controllers=ROBOT_CONTROLLERS,
         sessions=sessions(),
         n_hits=ROBOT["scene_hits"],
+        seen_cutoff_hz=CURATION["causal_cutoff_ball_hz"],
         settings=ROBOT_SETTINGS,
         code=code("robot_scene"),
     log:
         "logs/robot_scene.log",
+    conda:
+        CONDA_ENV
+    script:
+        STAGE_SCRIPT
+
+
+rule robot_ablation:
+    input:
+        dataset="processed/dataset.parquet",
+        predictions="processed/predictions.parquet",
+        balls=expand("interim/filtered/{session}_ball.parquet", session=sessions()),
+        causal_balls=expand("interim/causal/{session}_ball.parquet", session=sessions()),
+        limits="config/robot/limits.yaml",
+        urdf="config/robot/iiwa14_ridgeback.urdf",
+    output:
+        md="reports/tables/robot_ablation.md",
+        csv="reports/tables/robot_ablation.csv",
+        servo_md="reports/tables/servo_accuracy.md",
+        servo_csv="reports/tables/servo_accuracy.csv",
+    params:
+        sessions=sessions(),
+        settings=ROBOT_SETTINGS,
+        inputs=INPUTS,
+        other_inputs=OTHER_INPUTS,
+        other_final=OTHER_FINAL,
+        seen_cutoff_hz=CURATION["causal_cutoff_ball_hz"],
+        code=code("robot_ablation"),
+    log:
+        "logs/robot_ablation.log",
+    benchmark:
+        "benchmarks/results/robot_ablation.tsv"
     conda:
         CONDA_ENV
     script:

@@ -173,17 +173,22 @@ def detect_net_crossings(times, ball, net_y: float = 0.0, hysteresis: float = 0.
 
 
 def drop_ball_outliers(ball3d: pd.DataFrame, max_speed: float = 40.0, margin: float = 0.05,
-                       neighbours: int = 2, fs_hz: float = 100.0) -> pd.DataFrame:
+                       neighbours: int = 2, fs_hz: float = 100.0, causal: bool = False) -> pd.DataFrame:
     """ball3d with the samples no neighbour confirms set unseen (x, y, z NaN, n_views 0): a sample is
     kept when a seen sample within `neighbours` frames lies within max_speed (m/s, above a smash) * dt
     + margin (m) of it. A triangulation onto a wrong pair of detections lands metres off its flight; an
-    isolated sample cannot be checked and is dropped too."""
+    isolated sample cannot be checked and is dropped too.
+
+    causal: only the `neighbours` frames before a sample confirm it (rows in time order), so the decision
+    on a frame never waits for later ones, as live. Its cost: the first sample after a gap of more than
+    `neighbours` frames (and the session's first) has nothing to confirm it and is dropped as well."""
     xyz = ball3d[["x", "y", "z"]].to_numpy(float)
     confirmed = np.zeros(len(xyz), bool)
     for k in range(1, neighbours + 1):
         step = np.linalg.norm(xyz[k:] - xyz[:-k], axis=1) <= max_speed * k / fs_hz + margin  # NaN: False
         confirmed[k:] |= step
-        confirmed[:-k] |= step
+        if not causal:
+            confirmed[:-k] |= step
     out = ball3d.copy()
     dropped = ~confirmed & np.isfinite(xyz).all(axis=1)
     out.loc[dropped, ["x", "y", "z"]] = np.nan

@@ -129,20 +129,34 @@ def lowpass(signal, cutoff_hz: float, fs_hz: float = 100.0, order: int = 4) -> n
 # pairs of model joints (positions in MODEL_JOINT_IDS) whose distance is a rigid bone or the torso's width
 
 
-def clean_pose(pose3d: pd.DataFrame, max_bone_error: float = 0.10) -> pd.DataFrame:
+def clean_pose(pose3d: pd.DataFrame, max_bone_error: float = 0.10, causal: bool = False,
+               window_s: float = 10.0) -> pd.DataFrame:
     """pose3d with bad joints removed (coordinates NaN, views 0): a joint is bad on a frame where every
     bone (frames.MODEL_BONES) it belongs to is longer or shorter than that bone's median over the
     player's session by more than max_bone_error (m), e.g. a joint triangulated onto the other arm or
     another person. On the raw pose, before the low-pass, which would smear one such frame over its
-    neighbours."""
+    neighbours.
+
+    causal: the median is the bone's over the player's frames of the last window_s s up to and with
+    the frame itself, so no decision depends on a later frame (as live). It checks little on a player's
+    first frames, whose reference is those frames themselves.
+    """
     out = pose3d.copy()
     for player in out["player"].unique():
         rows = (out["player"] == player).to_numpy()
         joints = out.loc[rows, JOINT_XYZ].to_numpy(float).reshape(-1, len(MODEL_JOINT_IDS), 3)
         lengths = np.stack([np.linalg.norm(joints[:, a] - joints[:, b], axis=1) for a, b in MODEL_BONES],
                            axis=1)
+        if causal:  # rolling over time needs the rows in time order: sorted, then put back
+            time_ns = out.loc[rows, "time_ns"].to_numpy(np.int64)
+            order = np.argsort(time_ns, kind="stable")
+            reference = np.empty_like(lengths)
+            reference[order] = pd.DataFrame(lengths[order], index=pd.DatetimeIndex(time_ns[order])).rolling(
+                pd.Timedelta(seconds=window_s), min_periods=1).median().to_numpy()
+        else:
+            reference = np.nanmedian(lengths, axis=0)
         with np.errstate(invalid="ignore"):
-            off = np.abs(lengths - np.nanmedian(lengths, axis=0)) > max_bone_error
+            off = np.abs(lengths - reference) > max_bone_error
         bad = np.stack([off[:, [k for k, bone in enumerate(MODEL_BONES) if j in bone]].all(axis=1)
                         for j in range(len(MODEL_JOINT_IDS))], axis=1)  # (T, 8)
         bad_xyz = np.repeat(bad, 3, axis=1)

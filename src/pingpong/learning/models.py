@@ -4,11 +4,11 @@ Frame indexing (one convention for training, prediction and streaming):
 - An input sequence X (N, T, 39) ends at the hit frame: X[:, T-1] is t = 0 (the hit),
   X[:, T-1-k] is t = -k frames (k * 10 ms before the hit at 100 Hz).
 - Output index i of the forward pass is the prediction made with frames up to and including i.
-  The model predicts at each of the last 30 frames *before* the hit: indices T-31 .. T-2, i.e.
-  t = -30 .. -1. The output at the hit frame (index T-1) is never trained nor reported.
-- `prediction_frames(out)` cuts those 30 columns: column k is t = -(30 - k), so column 0 is
-  30 frames (0.30 s) before the hit and column 29 is 1 frame (10 ms) before it
-  (`FRAMES_BEFORE_HIT[k]` frames).
+  The model predicts at each frame from 30 before the hit to the hit itself: indices T-31 .. T-1,
+  i.e. t = -30 .. 0 (31 predictions; the paper's network outputs 30 x 3 "between 30 frames before
+  the hit and 0 frames before", and its robot uses the prediction of t = 0, so the hit frame is kept).
+- `prediction_frames(out)` cuts those 31 columns: column k is t = -(30 - k), so column 0 is
+  30 frames (0.30 s) before the hit and column 30 is the hit frame (`FRAMES_BEFORE_HIT[k]` frames).
 - Velocity inputs (`velocity=True`, beyond the paper): each frame's 39 values are followed by their
   change since the previous frame, per second (0 at a hit's first real frame), so the net sees
   motion without having to learn differencing from a few hundred hits. The streaming step carries
@@ -26,7 +26,7 @@ from torch import nn
 from pingpong.common.artifacts import Provenance, Schema, load_model, save_model
 from pingpong.frames import FRAME_NS, N_INPUT, N_PRED_FRAMES
 
-FRAMES_BEFORE_HIT = np.arange(N_PRED_FRAMES, 0, -1)  # column k of prediction_frames() -> frames before hit
+FRAMES_BEFORE_HIT = np.arange(N_PRED_FRAMES, -1, -1)  # column k of prediction_frames() -> frames before hit
 MODEL_SCHEMA = Schema("anticipation_net", 1)
 CELLS = {"rnn": nn.RNN, "lstm": nn.LSTM, "gru": nn.GRU}
 _MIN_STD = 1e-6  # a constant input channel is centred but not scaled
@@ -42,19 +42,19 @@ def valid_mask(lengths, n_frames: int) -> torch.Tensor:
 
 
 def prediction_mask(lengths, n_frames: int) -> torch.Tensor:
-    """(N, T) bool (None: (1, T)), True at the 30 prediction frames t = -30 .. -1 that hold real input."""
+    """(N, T) bool (None: (1, T)), True at the 31 prediction frames t = -30 .. 0 that hold real input."""
     frames = torch.arange(n_frames)
-    in_window = (frames >= n_frames - 1 - N_PRED_FRAMES) & (frames < n_frames - 1)
+    in_window = frames >= n_frames - 1 - N_PRED_FRAMES
     lengths = None if lengths is None else torch.as_tensor(lengths).cpu()
     return valid_mask(lengths, n_frames) & in_window[None, :]
 
 
 def prediction_frames(out: torch.Tensor) -> torch.Tensor:
-    """The (N, 30, 3) predictions at t = -30 .. -1 from a forward pass (N, T, 3); NaN before t = -(T-1)."""
+    """The (N, 31, 3) predictions at t = -30 .. 0 from a forward pass (N, T, 3); NaN before t = -(T-1)."""
     missing = N_PRED_FRAMES + 1 - out.shape[1]
     if missing > 0:
         out = torch.cat([out.new_full((out.shape[0], missing, out.shape[2]), float("nan")), out], dim=1)
-    return out[:, -1 - N_PRED_FRAMES : -1]
+    return out[:, -1 - N_PRED_FRAMES:]
 
 
 def with_velocity(x: torch.Tensor, valid: torch.Tensor) -> torch.Tensor:

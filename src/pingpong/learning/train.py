@@ -89,7 +89,7 @@ def train(net: AnticipationNet, X_train, Y_train, X_val, Y_val, lr: float, *, ba
 
     X (N, T, 39) float32, Y (N, 3); lengths (N,) real frames per sequence (None: no padding). The
     net's normaliser is fitted here on the training part (real frames only). AdamW with PyTorch's
-    defaults except lr; the loss is `trajectory_loss` over the 30 prediction frames. Early stopping
+    defaults except lr; the loss is `trajectory_loss` over the 31 prediction frames. Early stopping
     as `EarlyStopping`; at the end the weights of the lowest validation loss are loaded, and the net
     is left on the CPU in eval mode. best_state: those weights (CPU tensors). history: one dict per
     epoch: epoch, train_loss (mean over the epoch's batches), val_loss, seconds.
@@ -153,7 +153,7 @@ def train(net: AnticipationNet, X_train, Y_train, X_val, Y_val, lr: float, *, ba
 
 @torch.no_grad()
 def predict(net: AnticipationNet, X, lengths=None, batch_size: int = 500) -> np.ndarray:
-    """(N, 30, 3) float32 (a1, a2, b) at t = -30 .. -1 (column k is 30 - k frames before the hit);
+    """(N, 31, 3) float32 (a1, a2, b) at t = -30 .. 0 (column k is 30 - k frames before the hit);
     NaN where that frame is padding. Runs on the net's device, in eval mode."""
     net.eval()
     device = next(net.parameters()).device
@@ -168,6 +168,6 @@ def predict(net: AnticipationNet, X, lengths=None, batch_size: int = 500) -> np.
 def strike_points(pred):
     """Strike-point x (m) of paths (..., 3) at the strike line y = STRIKE_Y (< 0: the a2 line).
 
-    `predict`'s (N, 30, 3) gives (N, 30); works on numpy arrays and torch tensors alike.
+    `predict`'s (N, 31, 3) gives (N, 31); works on numpy arrays and torch tensors alike.
     """
     return pred[..., 1] * STRIKE_Y + pred[..., 2]

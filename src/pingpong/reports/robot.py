@@ -15,6 +15,15 @@ from pingpong.robot.model import N_BASE, Robot
 
 REGIONS = ("left", "centre", "right", "all")
 BASELINE = "servo"
+# the paper's Tables 2-4 (223 test hits): per region (total, hits, end distance mean cm, 0.5 std cm)
+PAPER_TABLES = {
+    "servo": {"right": (101, 60, 10.13, 4.38), "centre": (81, 60, 6.26, 1.93), "left": (41, 24, 12.82, 7.31),
+              "all": (223, 144, 9.22, 4.615)},
+    "anticipatory": {"right": (101, 67, 8.33, 3.85), "centre": (81, 59, 5.9, 1.87),
+                     "left": (41, 20, 13.63, 7.41), "all": (223, 146, 8.42, 4.46)},
+    "uncertainty_aware": {"right": (101, 70, 8.35, 3.72), "centre": (81, 59, 5.84, 1.78),
+                          "left": (41, 22, 12.5, 7.18), "all": (223, 151, 8.2, 4.27)},
+}
 
 
 def region_rows(sim: pd.DataFrame) -> pd.DataFrame:
@@ -67,13 +76,23 @@ def robot_table(sims: dict[str, pd.DataFrame], rng: np.random.Generator, n_boot:
                       "diff_ci95_high": high, "mcnemar_p": mcnemar_exact(theirs, ours)}
         for column, value in comparison.items():
             table[column] = np.where(table["region"] == "all", value, np.nan)
-        parts.append(table)
+        parts.append(with_paper(table, name))
     return pd.concat(parts, ignore_index=True)
 
 
-def limits_table(robot: Robot, derived: dict[str, np.ndarray]) -> pd.DataFrame:
-    """One row per joint: the limits the controller uses beside the accelerations derived from the torque
-    limits (model.worst_case_accelerations; NaN for the base, whose drive forces are not modelled)."""
+def with_paper(table: pd.DataFrame, controller: str) -> pd.DataFrame:
+    """The paper's total, hits and hit % for the same controller and region beside ours (NaN: not in it)."""
+    paper = PAPER_TABLES.get(controller, {})
+    rows = [paper.get(region, (np.nan,) * 4) for region in table["region"]]
+    total, hits = (np.array([r[k] for r in rows], float) for k in (0, 1))
+    return table.assign(paper_total=total, paper_hits=hits, paper_hit_pct=100 * hits / total)
+
+
+def limits_table(robot: Robot, derived: dict[str, np.ndarray],
+                 acceleration_sets: dict[str, np.ndarray]) -> pd.DataFrame:
+    """One row per joint: the limits the controller uses, every acceleration set of limits.yaml
+    (acceleration_{set}) and the accelerations derived from the torque limits (model.worst_case_accelerations;
+    NaN for the base, whose drive forces are not modelled)."""
     n = len(robot.joint_names)
     arm = lambda values: np.concatenate([np.full(N_BASE, np.nan), values])  # noqa: E731
     table = pd.DataFrame({
@@ -81,6 +100,7 @@ def limits_table(robot: Robot, derived: dict[str, np.ndarray]) -> pd.DataFrame:
         "unit": ["m"] * N_BASE + ["rad"] * (n - N_BASE),
         "position_min": robot.q_min, "position_max": robot.q_max,
         "velocity_max": robot.v_max, "acceleration_used": robot.a_max,
+        **{f"acceleration_{name}": values for name, values in acceleration_sets.items()},
         "torque_max_Nm": arm(robot.tau_max),
         "derived_simple_min": arm(derived["simple_min"]),
         "derived_coupled_min": arm(derived["coupled_min"]),

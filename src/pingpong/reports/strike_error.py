@@ -1,4 +1,4 @@
-"""The paper's Table 1: median strike-point error (cm) by region, and its course over the 30 frames."""
+"""The paper's Table 1: median strike-point error (cm) by region, and its course over t = -30 .. 0."""
 
 import matplotlib
 
@@ -32,8 +32,8 @@ def error_by_frame(predictions: pd.DataFrame) -> pd.DataFrame:
     return (100 * by_region.reindex(columns=[*REGIONS, "all"])).join(counts).reset_index()
 
 
-def table1(by_frame: pd.DataFrame, frames=(10, 1)) -> pd.DataFrame:
-    """Rows: model and frames before the hit (10 and 1, as the paper); columns: regions and all, cm."""
+def table1(by_frame: pd.DataFrame, frames=(10, 1, 0)) -> pd.DataFrame:
+    """Rows: model and frames before the hit (10 and 1 as the paper, 0 added); columns: regions, all (cm)."""
     rows = by_frame[by_frame["frames_before_hit"].isin(frames)]
     return rows.sort_values(["model", "frames_before_hit"], ascending=[True, False]).reset_index(drop=True)
 

@@ -8,7 +8,7 @@ Criteria (the uncertainty issue's, made explicit):
   width, ranks nothing: its Spearman counts as 0);
 - nominal coverage: pooled test coverage within COVERAGE_SLACK of the nominal;
 - far narrower intervals: mean width at most FAR_NARROWER of the paper's 130 cm.
-Hits are resampled whole (their 30 frames together), the same resamples for every estimator.
+Hits are resampled whole (their 31 frames together), the same resamples for every estimator.
 """
 
 import numpy as np

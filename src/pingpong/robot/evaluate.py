@@ -18,12 +18,13 @@ from pingpong.robot.controllers import Controller
 from pingpong.robot.episode import (
     FRAME_DT,
     EpisodeParams,
+    anticipation_frames,
     episode_times,
     goal_schedule,
     run_episode,
     strike_crossing,
 )
-from pingpong.robot.flights import HIT_KEYS, prediction_series
+from pingpong.robot.flights import HIT_KEYS, HitFlight, prediction_series
 from pingpong.robot.model import Robot
 from pingpong.robot.schemas import SIM
 
@@ -46,25 +47,25 @@ class SimSettings:
 class RobotSettings(Settings):
     """The robot rules' settings (config robot.*; the schema says what each means)."""
 
-    anticipation_start_frame: int
-    servo_start_frame: int
-    servo_period_frames: int
-    latency_frames: int
-    control_dt_s: float
+    accelerations: str  # limits.yaml's acceleration set (model.ACCELERATION_SETS)
+    timing: str  # the name of the timing in `timings`
+    timings: dict  # name -> control_dt_s, latency_frames, anticipation_start_frame, ... (episode.py)
+    servo_fit: str
     alpha_grid: list[float]
     confidence_quantiles: list[float]
     max_flight_s: float
 
 
+def episode_params(settings: RobotSettings) -> EpisodeParams:
+    """EpisodeParams of the settings' named timing and servo fit."""
+    timing = dict(settings.timings[settings.timing])
+    dt = timing.pop("control_dt_s")
+    return EpisodeParams(**timing, servo_fit=settings.servo_fit, control=ControlParams(dt=dt))
+
+
 def sim_settings(settings: RobotSettings, anticipation_z: float) -> SimSettings:
     """SimSettings from the robot settings (simulate_robot and robot_scene share it)."""
-    return SimSettings(
-        EpisodeParams(anticipation_start_frame=settings.anticipation_start_frame,
-                      servo_start_frame=settings.servo_start_frame,
-                      servo_period_frames=settings.servo_period_frames,
-                      latency_frames=settings.latency_frames,
-                      control=ControlParams(dt=settings.control_dt_s)),
-        anticipation_z=float(anticipation_z))
+    return SimSettings(episode_params(settings), anticipation_z=float(anticipation_z))
 
 
 def confidence_ramp(uncertainty: np.ndarray, u_full: float, u_zero: float) -> np.ndarray:
@@ -78,7 +79,9 @@ def confidence_ramp(uncertainty: np.ndarray, u_full: float, u_zero: float) -> np
 def step_alphas(times: np.ndarray, first_servo: float, prediction: Prediction, controller: Controller,
                 params: EpisodeParams) -> np.ndarray:
     """Per-step alpha (times (S,) s) of a controller: its anticipation rule before first_servo, then
-    alpha_servo. The 'latest prediction' at t is the last one computed at least the latency before t."""
+    alpha_servo. The 'latest prediction' at t is the last used one (episode.anticipation_frames)
+    computed at least the latency before t."""
+    prediction = used_predictions(prediction, params)
     usable = prediction.frames * FRAME_DT + params.latency_frames * FRAME_DT
     latest = np.searchsorted(usable, times + 1e-12, side="right") - 1
     has = latest >= 0
@@ -95,29 +98,36 @@ def step_alphas(times: np.ndarray, first_servo: float, prediction: Prediction, c
     return np.where(times < first_servo - 1e-12, alpha, params.alpha_servo)
 
 
-def simulate_hit(robot: Robot, ball_times: np.ndarray, ball_positions: np.ndarray, prediction: Prediction,
-                 controller: Controller, settings: SimSettings = SimSettings()) -> dict:
+def used_predictions(prediction: Prediction, params: EpisodeParams) -> Prediction:
+    """The prediction at the frames whose goals the robot uses (episode.anticipation_frames)."""
+    used = anticipation_frames(prediction.frames, params)
+    return Prediction(prediction.frames[used], prediction.strike_x[used],
+                      None if prediction.uncertainty is None else prediction.uncertainty[used])
+
+
+def simulate_hit(robot: Robot, flight: HitFlight, prediction: Prediction, controller: Controller,
+                 settings: SimSettings = SimSettings()) -> dict:
     """run_episode of one flight under a controller; adds 'anticipated' (the robot moved before servoing)."""
     params = settings.episode
     goals = (prediction.frames, np.column_stack([prediction.strike_x,
                                                  np.full(len(prediction.frames), settings.anticipation_z)]))
-    t_strike, _ = strike_crossing(ball_times, ball_positions, params.control.strike_y)
-    t_end = t_strike if np.isfinite(t_strike) else ball_times[-1]
+    t_strike, _ = strike_crossing(flight.times, flight.positions, params.control.strike_y)
+    t_end = t_strike if np.isfinite(t_strike) else flight.times[-1]
     times = episode_times(t_end, params)
-    _, _, first_servo = goal_schedule(ball_times, ball_positions, t_end, goals, params)
+    seen = (flight.seen_times, flight.seen_positions)
+    first_servo = goal_schedule(*seen, t_end, goals, params).first_servo
     alpha = step_alphas(times, first_servo, prediction, controller, params)
-    out = run_episode(robot, ball_times, ball_positions, goals, params, alpha=alpha)
+    out = run_episode(robot, flight.times, flight.positions, goals, params, alpha=alpha, seen=seen)
     out["anticipated"] = bool(np.any(alpha[times < first_servo - 1e-12] > 0))
     return out
 
 
-def simulate_hits(robot: Robot, hits: pd.DataFrame, flights: list, predictions: list[Prediction],
+def simulate_hits(robot: Robot, hits: pd.DataFrame, flights: list[HitFlight], predictions: list[Prediction],
                   controller: Controller, settings: SimSettings = SimSettings()) -> pd.DataFrame:
     """SIM table: one row per hit (rows of a DATASET table, with its flight and predictions, same order)."""
     rows = []
-    for hit, (times, positions), prediction in zip(hits.itertuples(index=False), flights, predictions,
-                                                   strict=True):
-        out = simulate_hit(robot, times, positions, prediction, controller, settings)
+    for hit, flight, prediction in zip(hits.itertuples(index=False), flights, predictions, strict=True):
+        out = simulate_hit(robot, flight, prediction, controller, settings)
         rows.append({
             "controller": controller.name, "session": hit.session, "rally": hit.rally, "hit": hit.hit,
             "region": hit.region, "strike_x": hit.strike_x, "strike_z": hit.strike_z,
@@ -125,7 +135,7 @@ def simulate_hits(robot: Robot, hits: pd.DataFrame, flights: list, predictions: 
             "anticipated": out["anticipated"],
             "limits_ok": out["limits_ok"], "max_velocity_ratio": out["max_velocity_ratio"],
             "max_acceleration_ratio": out["max_acceleration_ratio"],
-            "min_position_margin": out["min_position_margin"],
+            "min_position_margin": out["min_position_margin"], "servo_no_estimate": out["servo_no_estimate"],
         })
     return pd.DataFrame(rows, columns=list(SIM.columns))
 

@@ -32,27 +32,38 @@ class Robot:
     urdf_path: str  # the URDF it was built from (the scene's visual shapes are read from it)
 
 
-def read_limits(path: Path) -> dict:
-    """limits.yaml as arrays: names, q_min, q_max, v_max, a_max (9,), tau_max (7,), home (9,)."""
+ACCELERATION_SETS = ("table6", "drake")  # limits.yaml's acceleration sets (its header cites both)
+
+
+def read_limits(path: Path, accelerations: str = "table6") -> dict:
+    """limits.yaml as arrays: names, q_min, q_max, v_max, a_max (9,) of the named acceleration set,
+    tau_max (7,), home (9,)."""
+    if accelerations not in ACCELERATION_SETS:
+        raise ValueError(f"acceleration set '{accelerations}': expected one of {ACCELERATION_SETS}")
     doc = yaml.safe_load(Path(path).read_text())
     joints = doc["joints"]
+    for j in joints:
+        if not isinstance(j.get("acceleration"), dict) or accelerations not in j["acceleration"]:
+            raise ValueError(f"{path}: joint {j.get('name')} has no '{accelerations}' acceleration; expected "
+                             f"acceleration: {{{', '.join(f'{a}: ...' for a in ACCELERATION_SETS)}}}")
     position = np.array([j["position"] for j in joints], float)
     return {
         "names": tuple(j["name"] for j in joints),
         "q_min": position[:, 0], "q_max": position[:, 1],
         "v_max": np.array([j["velocity"] for j in joints], float),
-        "a_max": np.array([j["acceleration"] for j in joints], float),
+        "a_max": np.array([j["acceleration"][accelerations] for j in joints], float),
         "tau_max": np.array([j["torque"] for j in joints if "torque" in j], float),
         "home": np.array(doc["home"], float),
     }
 
 
-def load_robot(urdf_path: Path, limits_path: Path) -> Robot:
-    """Build the Pinocchio model from the URDF and attach the limits of limits.yaml (joint order checked).
+def load_robot(urdf_path: Path, limits_path: Path, accelerations: str = "table6") -> Robot:
+    """Build the Pinocchio model from the URDF and attach the limits of limits.yaml (joint order checked),
+    with its named acceleration set (ACCELERATION_SETS).
 
     The files come in through the rule's `input:` (config/robot/), so Snakemake reruns on their edits."""
     model = pin.buildModelFromUrdf(str(urdf_path))
-    limits = read_limits(limits_path)
+    limits = read_limits(limits_path, accelerations)
     names = tuple(model.names[1:])
     if names != limits["names"]:
         raise ValueError(f"{limits_path}: joints {limits['names']} do not match the URDF's {names}")

@@ -54,7 +54,7 @@ from pingpong.frames import (
 from pingpong.io.mcap_io import SceneWriter
 from pingpong.robot.controllers import Controller
 from pingpong.robot.evaluate import Prediction, RobotSettings, SimSettings, sim_settings, simulate_hit
-from pingpong.robot.flights import prediction_series
+from pingpong.robot.flights import HitFlight, prediction_series
 from pingpong.robot.model import PADDLE_RADIUS, Robot
 
 FRAME_ID = "table"
@@ -124,17 +124,17 @@ def _take(values: np.ndarray, index: np.ndarray) -> np.ndarray:
     return out
 
 
-def episode_scene(robot: Robot, hit, camera_ns: np.ndarray, flight: tuple[np.ndarray, np.ndarray],
+def episode_scene(robot: Robot, hit, camera_ns: np.ndarray, flight: HitFlight,
                   prediction: Prediction, labels: np.ndarray, controller: Controller,
                   settings: SimSettings) -> SceneEpisode:
     """Re-run one hit's episode and lay it out on the camera frames.
 
     hit: a DATASET row (with 'x'); camera_ns: the session's frame times (the filtered ball table's time_ns,
-    which hit_frame indexes); flight: hit_flight's (times s, positions (N, 3)); prediction: its
+    which hit_frame indexes); flight: its flights.HitFlight (the judged flight is shown); prediction: its
     hit_predictions entry; labels (P, 3): a1, a2, b at prediction.frames.
     """
-    times, positions = flight
-    out = simulate_hit(robot, times, positions, prediction, controller, settings)
+    times, positions = flight.times, flight.positions
+    out = simulate_hit(robot, flight, prediction, controller, settings)
     inputs = input_frames(hit)
     t_hit, hit_frame, camera_ns = int(hit.t_hit_ns), int(hit.hit_frame), np.asarray(camera_ns, np.int64)
     # the flight's samples are camera frames: back to their indices (exact: times came from these ns)

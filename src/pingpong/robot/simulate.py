@@ -16,22 +16,23 @@ def final_predictions(predictions: pd.DataFrame) -> pd.DataFrame:
     return predictions[predictions["model"] == "final"]
 
 
-def hit_parts(hits: pd.DataFrame, balls: dict, predictions: pd.DataFrame, uncertainty: pd.DataFrame | None,
-              controller: str, max_flight_s: float) -> tuple:
+def hit_parts(hits: pd.DataFrame, balls: tuple[dict, dict | None], predictions: pd.DataFrame,
+              uncertainty: pd.DataFrame | None, controller: str, max_flight_s: float) -> tuple:
     """(hits, their flights, their predictions) as a controller sees them: with the configured estimator's
-    uncertainties only where the controller follows them."""
+    uncertainties only where the controller follows them. balls: (judged, seen) ball tables by session
+    (flights.hit_flights)."""
     follows = CONTROLLERS[controller].uses_uncertainty
-    return (hits, hit_flights(hits, balls, max_flight_s),
+    return (hits, hit_flights(hits, balls[0], max_flight_s, balls[1]),
             hit_predictions(predictions, hits, uncertainty if follows else None))
 
 
 def simulate_controller(name: str, robot: Robot, dataset: pd.DataFrame, predictions: pd.DataFrame,
-                        balls: dict, uncertainty: pd.DataFrame | None,
+                        balls: tuple[dict, dict | None], uncertainty: pd.DataFrame | None,
                         cfg: RobotSettings) -> tuple[pd.DataFrame, dict]:
     """(SIM table of the test hits, the CHOICE record: the chosen settings and the calibration sweep).
 
-    dataset: DATASET rows; predictions: the final model's; balls: session -> filtered ball table;
-    uncertainty: the configured estimator's table (None: no estimator).
+    dataset: DATASET rows; predictions: the final model's; balls: (judged, seen) session -> ball table
+    (flights.hit_flights); uncertainty: the configured estimator's table (None: no estimator).
     """
     settings = sim_settings(cfg, dataset.loc[dataset["split"] == "train", "strike_z"].median())
     parts = {split: hit_parts(dataset[dataset["split"] == split].reset_index(drop=True), balls, predictions,

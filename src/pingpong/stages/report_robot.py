@@ -5,7 +5,7 @@ from pingpong.common.artifacts import read_json, read_table
 from pingpong.common.seeding import rng_for
 from pingpong.reports.robot import limits_table, robot_table
 from pingpong.reports.tables import write_report_table
-from pingpong.robot.model import load_robot, worst_case_accelerations
+from pingpong.robot.model import ACCELERATION_SETS, load_robot, read_limits, worst_case_accelerations
 from pingpong.robot.schemas import CHOICE, SIM
 
 CAPTION = """The simulated KUKA iiwa 14 on its Ridgeback base against every test hit's measured flight
@@ -14,11 +14,14 @@ crosses y = -1.40 m within the 8 cm paddle radius of the paddle centre), hit %, 
 (paddle centre to ball there) as mean and 0.5 std in cm (the paper's Tables 2-4). limit_breaches: episodes
 where a position, velocity or acceleration limit was exceeded at some step. On the 'all' rows each
 controller is compared with visual servoing alone on the same hits: the difference in hits, its paired
-bootstrap 95 % interval ({n_boot} resamples) and the exact McNemar p-value. Controllers: {controllers}."""
+bootstrap 95 % interval ({n_boot} resamples) and the exact McNemar p-value. paper_*: the paper's Tables 2-4
+for the same controller and region (223 test hits of its lab). Setting: {setting}. Controllers:
+{controllers}."""
 
 LIMITS_CAPTION = """Joint limits of the simulated robot (config/robot/limits.yaml; sources there): positions,
-velocities (base m, m/s, m/s^2; arm rad, rad/s, rad/s^2), the accelerations the controller uses (arm:
-Drake's iiwa14 description, base: the paper's 15 m/s^2) and the torque limits. derived_*: the acceleration
+velocities (base m, m/s, m/s^2; arm rad, rad/s, rad/s^2), the accelerations the controller uses (the set
+config robot.accelerations names: {used}) beside both sets (table6: the paper's Table 6; drake: Drake's
+iiwa14 description; base: the paper's 15 m/s^2 in both) and the torque limits. derived_*: the acceleration
 each arm joint alone can reach within the torque limits against gravity and Coriolis forces, at {n}
 states sampled uniformly within the position and velocity limits (pingpong.robot.model.
 worst_case_accelerations): simple = (tau_max_i - |b_i|) / M_ii, coupled = min_j (tau_max_j - |b_j|) /
@@ -43,9 +46,12 @@ def main(ctx):
     sims = {name: read_table(f, SIM) for name, f in zip(p["controllers"], i.sims, strict=True)}
     choices = [read_json(f, CHOICE) for f in i.choices]
     table = robot_table(sims, rng_for(p["seed"], "report_robot"), p["n_bootstrap"])
-    caption = CAPTION.format(n_boot=p["n_bootstrap"], controllers="; ".join(describe(c) for c in choices))
+    caption = CAPTION.format(n_boot=p["n_bootstrap"], controllers="; ".join(describe(c) for c in choices),
+                             setting=p["setting"])
     write_report_table(table, o.md, o.csv, "Simulated robot (Tables 2-4)", caption)
-    robot = load_robot(ctx.input.urdf, ctx.input.limits)
+    robot = load_robot(i.urdf, i.limits, p["accelerations"])
     derived = worst_case_accelerations(robot, rng_for(p["seed"], "robot_limits"), p["limit_samples"])
-    write_report_table(limits_table(robot, derived), o.limits_md, o.limits_csv,
-                       "Robot joint limits (Table 6)", LIMITS_CAPTION.format(n=p["limit_samples"]))
+    sets = {name: read_limits(i.limits, name)["a_max"] for name in ACCELERATION_SETS}
+    write_report_table(limits_table(robot, derived, sets), o.limits_md, o.limits_csv,
+                       "Robot joint limits (Table 6)",
+                       LIMITS_CAPTION.format(n=p["limit_samples"], used=p["accelerations"]))

@@ -24,8 +24,8 @@ from pingpong.reports.uncertainty_verdict import (
 from pingpong.uncertainty.schemas import FITTED, UNCERTAINTY
 
 CAPTION = """Uncertainty of the strike-point prediction (final model) on the test hits, at {coverage:.0%}
-nominal coverage. Spearman: rank correlation of the uncertainty with the absolute error, pooled over the 30
-frames before the hit and within each frame (mean over frames; pooled alone rewards knowing the time).
+nominal coverage. Spearman: rank correlation of the uncertainty with the absolute error, pooled over the 31
+frames t = -30 .. 0 and within each frame (mean over frames; pooled alone rewards knowing the time).
 AUSE: area between the sparsification curve and the oracle's (mean error left after removing the most
 uncertain share, divided by the mean error; 0 = ranks like the errors). Coverage and mean width of the
 intervals pooled, and the lowest and highest coverage over the frames; width_cv: coefficient of

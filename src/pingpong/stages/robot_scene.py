@@ -9,8 +9,8 @@ from pathlib import Path
 from pingpong.common.artifacts import read_json, read_table
 from pingpong.curation.schemas import DATASET
 from pingpong.learning.schemas import PREDICTIONS
-from pingpong.perception.schemas import BALL3D
 from pingpong.robot.evaluate import RobotSettings
+from pingpong.robot.flights import read_ball_tables
 from pingpong.robot.model import load_robot
 from pingpong.robot.scene import (
     check_against_sim,
@@ -33,16 +33,15 @@ def main(ctx):
     hits = scene_hits(read_table(i.dataset, DATASET), p["n_hits"])
     predictions = final_predictions(read_table(i.predictions, PREDICTIONS))
     uncertainty = read_table(i.uncertainty[0], UNCERTAINTY) if i.get("uncertainty") else None
-    balls = {s: read_table(f, BALL3D, columns=["time_ns", "x", "y", "z"])
-             for s, f in zip(p["sessions"], i.balls, strict=True)}
+    balls = read_ball_tables(p["sessions"], i.balls, i.seen_balls, p["seen_cutoff_hz"])
     labels = prediction_labels(predictions, hits)
-    robot = load_robot(ctx.input.urdf, ctx.input.limits)
+    robot = load_robot(ctx.input.urdf, ctx.input.limits, cfg.accelerations)
     visuals = robot_visuals(robot)
     outputs = {Path(path).name: path for path in ctx.output.mcaps}
     # the same provenance as the Parquet artifacts', as the MCAP metadata record 'pingpong'
     provenance = {"pingpong": {k: v if isinstance(v, str) else json.dumps(v)
                                for k, v in asdict(ctx.provenance()).items()}}
-    camera_ns = {s: ball["time_ns"].to_numpy() for s, ball in balls.items()}
+    camera_ns = {s: ball["time_ns"].to_numpy() for s, ball in balls[0].items()}
     scenes = []
     for name, sim_path, choice_path in zip(p["controllers"], i.sims, i.choices, strict=True):
         _, flights, hit_preds = hit_parts(hits, balls, predictions, uncertainty, name, cfg.max_flight_s)

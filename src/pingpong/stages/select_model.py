@@ -10,7 +10,7 @@ from pingpong.reports.tables import write_report_table
 
 CAPTION = """{n_folds}-fold cross-validation of every configuration of the grid (config `training.grid`) on
 the training part: mean and standard deviation of the validation loss (the paper's loss: summed
-absolute error in m over 24 points of the path, averaged over the 30 frames before the hit), best first.
+absolute error in m over 24 points of the path, averaged over the 31 frames t = -30 .. 0), best first.
 The first row is the configuration refit on the whole training part."""
 
 

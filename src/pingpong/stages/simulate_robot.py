@@ -7,8 +7,8 @@ import logging
 from pingpong.common.artifacts import read_table, write_json, write_table
 from pingpong.curation.schemas import DATASET
 from pingpong.learning.schemas import PREDICTIONS
-from pingpong.perception.schemas import BALL3D
 from pingpong.robot.evaluate import RobotSettings
+from pingpong.robot.flights import read_ball_tables
 from pingpong.robot.model import load_robot
 from pingpong.robot.schemas import CHOICE, SIM
 from pingpong.robot.simulate import final_predictions, simulate_controller
@@ -21,9 +21,9 @@ def main(ctx):
     p, i = ctx.params, ctx.input
     dataset = read_table(i.dataset, DATASET).drop(columns=["x"])
     uncertainty = read_table(i.uncertainty[0], UNCERTAINTY) if i.get("uncertainty") else None
-    balls = {s: read_table(f, BALL3D, columns=["time_ns", "x", "y", "z"])
-             for s, f in zip(p["sessions"], i.balls, strict=True)}
-    sim, choice = simulate_controller(p["controller"], load_robot(i.urdf, i.limits), dataset,
+    balls = read_ball_tables(p["sessions"], i.balls, i.seen_balls, p["seen_cutoff_hz"])
+    robot = load_robot(i.urdf, i.limits, p["settings"]["accelerations"])
+    sim, choice = simulate_controller(p["controller"], robot, dataset,
                                       final_predictions(read_table(i.predictions, PREDICTIONS)), balls,
                                       uncertainty, RobotSettings.from_config(p["settings"]))
     log.info("controller %s on %d test hits: %d hits; limits kept in %d", choice["controller"], len(sim),

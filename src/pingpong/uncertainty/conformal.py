@@ -1,6 +1,6 @@
 """Split conformal quantiles that calibrate by hit, never by frame.
 
-The 30 frames of one hit are strongly dependent, so a hit, not a frame, is the exchangeable unit.
+The 31 frames of one hit are strongly dependent, so a hit, not a frame, is the exchangeable unit.
 `conformal_quantile` gives every calibration hit a total weight of 1 spread over its scores and adds
 the unseen test hit as weight 1 at +inf. With F_i the empirical CDF of hit i's scores, the
 returned q is the smallest score with sum_{i<=n} F_i(q) >= (1 - alpha)(n + 1). Since the test hit's

@@ -1,5 +1,5 @@
 """A learned error head: a small recurrent net that reads a hit's input frames and the final model's
-strike-point prediction, and predicts the size of that prediction's error at each of the 30 frames.
+strike-point prediction, and predicts the size of that prediction's error at each of the 31 prediction frames.
 
 The issue's third difficulty estimate for normalised conformal, beside the ensemble spread and the
 k-NN error. It reuses the anticipation stack (AnticipationNet with one output) on the 39 inputs plus
@@ -21,17 +21,17 @@ HEAD_SCHEMA = Schema("error_head", 1)
 
 
 def head_inputs(X: np.ndarray, strike_pred: np.ndarray) -> torch.Tensor:
-    """(N, T, 40): X (N, T, 39) with the predicted strike x (N, 30) on the 30 prediction frames."""
+    """(N, T, 40): X (N, T, 39) with the predicted strike x (N, 31) on the 31 prediction frames."""
     X = np.asarray(X, np.float32)
     channel = np.zeros((*X.shape[:2], 1), np.float32)
-    channel[:, -1 - N_PRED_FRAMES:-1, 0] = strike_pred
+    channel[:, -1 - N_PRED_FRAMES:, 0] = strike_pred
     return torch.from_numpy(np.concatenate([X, channel], axis=-1))
 
 
 def fit_error_head(X: np.ndarray, strike_pred: np.ndarray, abs_errors: np.ndarray,
                    rng: np.random.Generator, *, hidden: int = 16, epochs: int = 20, lr: float = 3e-3,
                    dropout: float = 0.2, weight_decay: float = 1e-3) -> AnticipationNet:
-    """Train on hits X (N, T, 39) with the prediction (N, 30) and its absolute error (N, 30), m."""
+    """Train on hits X (N, T, 39) with the prediction (N, 31) and its absolute error (N, 31), m."""
     if not np.isfinite(abs_errors).all() or np.shape(abs_errors) != np.shape(strike_pred):
         raise ValueError(f"fit_error_head: errors {np.shape(abs_errors)} must be finite and shaped like the "
                          f"predictions {np.shape(strike_pred)}")
@@ -57,7 +57,7 @@ def fit_error_head(X: np.ndarray, strike_pred: np.ndarray, abs_errors: np.ndarra
 
 @torch.no_grad()
 def predict_error(net: AnticipationNet, X: np.ndarray, strike_pred: np.ndarray) -> np.ndarray:
-    """(N, 30) predicted absolute error (m, > 0: the floor included) at the 30 frames before the hit."""
+    """(N, 31) predicted absolute error (m, > 0: the floor included) at t = -30 .. 0."""
     return torch.exp(prediction_frames(net(head_inputs(X, strike_pred)))[..., 0]).double().numpy()
 
 

@@ -1,7 +1,7 @@
 """Quantile heads for conformalised quantile regression: a small MLP trained with the pinball loss
 to give the lower and upper quantiles of the strike-point residual y - y_hat from the frame features.
 
-Cheap on a CPU: full-batch AdamW on (hits x 30) rows for a few hundred epochs.
+Cheap on a CPU: full-batch AdamW on (hits x 31) rows for a few hundred epochs.
 """
 
 import numpy as np
