@@ -45,14 +45,16 @@ def test_learning_outputs_predictions_for_every_held_out_hit_and_frame(tiny_run)
     dataset = pd.read_parquet(tiny_run / "processed/dataset.parquet")
     pred = pd.read_parquet(tiny_run / "processed/predictions.parquet")
     held_out = (dataset["split"] != "train").sum()
-    assert (pred[pred["model"] == "ball_only"].shape[0]) == 30 * held_out
-    assert set(pred["frames_before_hit"]) == set(range(1, 31))
+    assert (pred[pred["model"] == "ball_only"].shape[0]) == 31 * held_out
+    assert (pred[pred["model"] == "final_zero_phase"].shape[0]) == 31 * held_out  # the other inputs' model
+    assert set(pred["frames_before_hit"]) == set(range(0, 31))  # t = -30 .. 0
     final = pred[pred["model"] == "final"]
-    assert len(final) == 30 * len(dataset)  # held-out by the final model, training hits out of fold
+    assert len(final) == 31 * len(dataset)  # held-out by the final model, training hits out of fold
     selection = json.loads((tiny_run / "processed/models/selection.json").read_text())
     assert selection["config"]["cell"] == "gru"
     table = pd.read_csv(tiny_run / "reports/tables/strike_error.csv")
-    assert set(table["model"]) == {"final", "ball_only", "mean"}
+    assert set(table["model"]) == {"final", "final_zero_phase", "ball_only", "mean"}
+    assert set(table["frames_before_hit"]) == {10, 1, 0}
     assert (tiny_run / "reports/figures/strike_error.png").stat().st_size > 1000
 
 
@@ -64,7 +66,7 @@ def test_uncertainty_tables_for_every_estimator_held_out_hit_and_frame(tiny_run)
     assert len(list((tiny_run / "processed/models/ensemble").glob("member*.safetensors"))) == 2
     for name in ESTIMATORS:
         table = pd.read_parquet(tiny_run / f"processed/uncertainty/{name}.parquet")
-        assert len(table) == 30 * held_out and set(table["split"]) <= {"calibration", "test"}, name
+        assert len(table) == 31 * held_out and set(table["split"]) <= {"calibration", "test"}, name
         assert (table["uncertainty"] >= 0).all(), name  # +inf where too few calibration hits
         interval = table["lower"].notna()
         assert (table.loc[interval, "lower"] <= table.loc[interval, "upper"]).all(), name
@@ -93,10 +95,25 @@ def test_robot_simulates_every_test_hit_per_controller_within_the_limits(tiny_ru
         all_row = table[(table["controller"] == controller) & (table["region"] == "all")].iloc[0]
         assert all_row["total"] == len(sim) and all_row["hits"] == sim["hit_ball"].sum()
     sweep = json.loads((tiny_run / "processed/sim/uncertainty_aware.json").read_text())["sweep"]
-    assert len(sweep) == 25  # the default 5 x 5 alpha grid
+    assert len(sweep) == 36  # the default 6 x 6 alpha grid, the paper's 0.6 in it
+    assert {(c["alpha1"], c["alpha2"]) for c in sweep} >= {(0.6, 1.0)}
     limits = pd.read_csv(tiny_run / "reports/tables/robot_limits.csv")
     arm = limits[limits["joint"].str.startswith("iiwa")]
-    assert (arm["headroom"] > 1).all()  # the accelerations used are reachable within the torques everywhere
+    assert np.allclose(arm["acceleration_used"], arm["acceleration_table6"])  # the paper's Table 6
+    assert (arm["acceleration_drake"] < arm["derived_coupled_min"]).all()  # Drake's: reachable everywhere
+
+
+def test_robot_ablation_covers_every_combination_within_the_limits(tiny_run):
+    dataset = pd.read_parquet(tiny_run / "processed/dataset.parquet")
+    n_test = (dataset["split"] == "test").sum()
+    table = pd.read_csv(tiny_run / "reports/tables/robot_ablation.csv")
+    combos = table[table["controller"].isin(["servo", "anticipatory"]) & (table["servo_fit"] == "model")]
+    assert len(combos.drop_duplicates(["accelerations", "timing", "inputs", "controller"])) == 16
+    assert (table["total"] == n_test).all() and (table["limit_breaches"] == 0).all()
+    assert (table["controller"] == "perfect").sum() == 1 and (table["servo_fit"] == "paper").sum() == 1
+    assert table.loc[table["changed"] == "none", "controller"].tolist() == ["servo", "anticipatory", "perfect"]
+    servo = pd.read_csv(tiny_run / "reports/tables/servo_accuracy.csv")
+    assert set(servo["fit"]) == {"paper", "model"} and set(servo["frames_after_hit"]) == {10, 15, 20}
 
 
 def test_html_report_shows_every_stage_table_and_figure(tiny_run):

@@ -58,6 +58,8 @@ def test_an_estimator_that_knows_the_errors_meets_every_criterion_and_noise_does
                                          tables["ensemble"]["abs_error"])
     where = window_text(by_frame_table(tables))
     assert where.count("knows_the_error") == 2, where
+    no_rank = by_frame_table(tables).assign(spearman=np.nan)  # too few test hits to rank within a frame
+    assert window_text(no_rank).count("undefined") == 2
     assert "no estimator" in verdict_text(verdict.reset_index().iloc[1:], summary, diagnostics, 0.9,
                                           tables["ensemble"]["abs_error"])
 

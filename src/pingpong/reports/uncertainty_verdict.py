@@ -131,8 +131,10 @@ def window_text(by_frame: pd.DataFrame) -> str:
     rho = by_frame.dropna(subset=["spearman"])
     late = rho["frames_before_hit"] <= LATE_FRAMES
     parts = []
-    for label, part in ((f"the last {LATE_FRAMES} frames before the hit", rho[late]),
+    for label, part in ((f"the last {LATE_FRAMES} frames before the hit and the hit itself", rho[late]),
                         ("the frames before those", rho[~late])):
         mean = part.groupby("estimator")["spearman"].mean()
-        parts.append(f"{mean.max():.2f} ({mean.idxmax()}) over {label}")
+        # a within-frame Spearman needs a few test hits; with too few every frame's is undefined
+        best = f"{mean.max():.2f} ({mean.idxmax()})" if len(mean) else "undefined"
+        parts.append(f"{best} over {label}")
     return "Where: the best mean within-frame Spearman is " + "; ".join(parts) + "."
