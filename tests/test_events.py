@@ -20,12 +20,14 @@ def sample(times, positions, phase):
 
 @pytest.fixture(scope="module")
 def hopping_flights():
-    """Balls dropped onto the table moving slowly along it: 3-4 bounces each. (t, noisy, truth times)."""
+    """Balls dropped onto the table moving slowly along it: 3-5 bounces each (at 0.9-1.3 m/s: the topspin
+    each bounce gives them presses them down less under the saturating lift than under the old linear one,
+    so faster balls hop longer and can leave the table after 2). (t, noisy, truth times)."""
     rng = np.random.default_rng(1)
     out = []
     for _ in range(30):
         flight = simulate_flight([rng.uniform(-0.4, 0.4), -1.2, rng.uniform(0.3, 0.5)],
-                                 [rng.uniform(-0.2, 0.2), rng.uniform(1.0, 1.4), 0.0], rng.normal(0, 20, 3),
+                                 [rng.uniform(-0.2, 0.2), rng.uniform(0.9, 1.3), 0.0], rng.normal(0, 20, 3),
                                  t_max=2.5)
         truth = np.array([e.time for e in flight.events if e.kind == "bounce"])
         t, p = sample(flight.times, flight.positions, rng.uniform(0, FRAME))

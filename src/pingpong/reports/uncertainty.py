@@ -19,7 +19,7 @@ from pingpong.uncertainty.metrics import (  # noqa: E402
 from pingpong.uncertainty.names import PAPER_ESTIMATORS  # noqa: E402
 
 SCATTER_ESTIMATORS = ("ensemble", "knn", "conformal", "cqr")  # the paper's three, and CQR beside them
-LAST_FRAME = 1  # the paper's "frame 0" (the hit) is never predicted; 1 frame before it is the latest
+LAST_FRAME = 0  # the paper's figure 3a-c: predictions made at t = 0, the hit frame
 
 
 def _test(table: pd.DataFrame) -> pd.DataFrame:

@@ -16,7 +16,7 @@ Two fits, by name in SERVO_FITS:
   it at most); a rising crossing, as of a ball hit from below the table's height, is none. On
   drag-slowed flights the y-quadratic can turn back before the strike line: status "no_crossing".
 - "model" (the default, DEFAULT_SERVO_FIT): the twin's own ball model (pingpong.twin.ball: drag,
-  linear Magnus, Nakashima table bounce with restitution and friction) fitted by Gauss-Newton to the
+  saturating Magnus, Nakashima table bounce with restitution and friction) fitted by Gauss-Newton to the
   points of the current flight segment (pre-bounce, or post-bounce once three are seen), then flown
   forward with simulate_flight, bounce included, to the strike line. The unknowns are the state at the
   segment's last point: position, velocity, spin and the ball's drag relative to the model's. The
@@ -41,7 +41,7 @@ from typing import NamedTuple
 import numpy as np
 
 from pingpong.frames import BALL_RADIUS, GRAVITY, STRIKE_Y, TABLE_HALF_LENGTH, TABLE_HALF_WIDTH
-from pingpong.twin.ball import BallParams, _rk4_step, simulate_flight, stop_at_y
+from pingpong.twin.ball import BallParams, rk4_step, simulate_flight, stop_at_y
 
 OK = "ok"
 TOO_FEW_POINTS = "too_few_points"  # fewer than MIN_FIT_POINTS usable points in the segment to fit
@@ -63,6 +63,7 @@ MAX_STEP = 0.1  # s, RK4 step back through the seen points (error < 0.1 mm with 
 FLY_DT = 0.02  # s, simulate_flight step to the strike line (error < 1 mm against 0.5 ms)
 MIN_APPROACH_SPEED = 0.1  # m/s towards the strike line: a slower ball is not coming
 MAX_FLIGHT = 2.0  # s ahead of the last point: a later crossing is none
+MIN_LIFT_FACTOR = 0.2  # floor of C_L / (C_M S) in the start spin: S <= 4 C_L_max / C_M (~3.3)
 
 
 class ServoEstimate(NamedTuple):
@@ -200,10 +201,15 @@ def _travel_direction(velocity: np.ndarray) -> np.ndarray:
 
 def _start_spin(start: np.ndarray, params: BallParams) -> np.ndarray:
     """The spin from the quadratic's acceleration: across v (v x (w x v) = w |v|^2 for w across v), with
-    the part along v (no effect on the acceleration) that leaves no spin about the direction of travel."""
+    the part along v (no effect on the acceleration) that leaves no spin about the direction of travel.
+
+    The lift is k_M f (w x v) with f = 1 / (1 + s_M |w x v| / |v|^2), so f = 1 - s_M |lift| / (k_M |v|^2);
+    f is floored at MIN_LIFT_FACTOR where the noisy curvature asks for more lift than C_L_max gives.
+    """
     v = start[1]
     magnus = 2 * start[2] - [0.0, 0.0, -GRAVITY] + params.k_drag * np.linalg.norm(v) * v
-    spin = _cross(v, magnus) / (params.k_magnus * (v @ v))
+    gain = params.k_magnus - params.magnus_saturation * np.linalg.norm(magnus) / (v @ v)  # k_M f
+    spin = _cross(v, magnus) / (max(gain, MIN_LIFT_FACTOR * params.k_magnus) * (v @ v))
     travel = _travel_direction(v)
     along = v / np.linalg.norm(v)
     return spin - (spin @ travel) / (along @ travel) * along if travel.any() else spin
@@ -217,11 +223,11 @@ def _positions_back(state: BallState, taus: np.ndarray, params: BallParams) -> n
     """
     n = max(math.ceil(-taus[0] / MAX_STEP - 1e-9), 1)
     h = taus[0] / n
-    kd, km = params.k_drag * state.drag_scale, params.k_magnus
+    kd, km, ks = params.k_drag * state.drag_scale, params.k_magnus, params.magnus_saturation
     p, v, w = tuple(state.position.tolist()), tuple(state.velocity.tolist()), tuple(state.spin.tolist())
     knots_p, knots_v = [p], [v]
     for _ in range(n):
-        p, v = _rk4_step(p, v, w, kd, km, h)
+        p, v = rk4_step(p, v, w, kd, km, ks, h)
         knots_p.append(p), knots_v.append(v)
     knots_p, knots_v = np.array(knots_p), np.array(knots_v)
     u = taus / h
@@ -231,26 +237,40 @@ def _positions_back(state: BallState, taus: np.ndarray, params: BallParams) -> n
             + (3 * s**2 - 2 * s**3) * knots_p[i + 1] + (s**3 - s**2) * h * knots_v[i + 1])
 
 
+def _lift(velocity: np.ndarray, spin: np.ndarray, params: BallParams):
+    """The ball model's lift acceleration k_M f c (c = w x v, f = 1 / (1 + s_M |c| / |v|^2)), its
+    derivative by c, L = k_M f (I - (1 - f) c c^T / |c|^2), and by v through |v|^2 (both (3, 3))."""
+    c, speed2 = _cross(spin, velocity), velocity @ velocity
+    size = np.linalg.norm(c)
+    f = 1 / (1 + params.magnus_saturation * size / speed2)
+    lift = params.k_magnus * f * c
+    along = np.outer(c, c) / size**2 if size > 0 else np.zeros((3, 3))
+    by_cross = params.k_magnus * f * (np.eye(3) - (1 - f) * along)
+    return lift, by_cross, 2 * (1 - f) / speed2 * np.outer(lift, velocity)
+
+
 def _design(taus: np.ndarray, state: BallState, params: BallParams) -> np.ndarray:
     """d positions / d unknowns (3n, 10) to third order in tau: position, velocity, spin, drag scale.
 
-    With a = g - s k_D |v| v + k_M w x v and J = da/dv, a change dv0 moves p(tau) by
-    (tau + tau^2/2 J + tau^3/6 J^2) dv0; dw by (tau^2/2 M + tau^3/6 (J M - k_M [a]x)) dw, M = -k_M [v]x;
-    the third order keeps Gauss-Newton converging in one or two steps on 0.3 s of flight.
+    With a = g - s k_D |v| v + lift(w x v, |v|) (_lift: L its derivative by w x v) and J = da/dv, a
+    change dv0 moves p(tau) by (tau + tau^2/2 J + tau^3/6 J^2) dv0; dw by
+    (tau^2/2 M + tau^3/6 (J M - L [a]x)) dw, M = -L [v]x, with L held at the state's (it changes
+    slowly); the third order keeps Gauss-Newton converging in one or two steps on 0.3 s of flight.
     """
-    v, km = state.velocity, params.k_magnus
+    v = state.velocity
     speed = np.linalg.norm(v)
+    lift, by_cross, by_speed = _lift(v, state.spin, params)
     drag_unit = -params.k_drag * speed * v  # d a / d s
-    accel = np.array([0.0, 0.0, -GRAVITY]) + state.drag_scale * drag_unit + km * _cross(state.spin, v)
+    accel = np.array([0.0, 0.0, -GRAVITY]) + state.drag_scale * drag_unit + lift
     jac = -params.k_drag * state.drag_scale * (speed * np.eye(3) + np.outer(v, v) / speed)
-    jac += km * _cross_matrix(state.spin)
-    by_spin = -km * _cross_matrix(v)
+    jac += by_cross @ _cross_matrix(state.spin) + by_speed
+    by_spin = -by_cross @ _cross_matrix(v)
     drag_rate = -params.k_drag * (speed * accel + (v @ accel) / speed * v)  # d/dt of d a / d s
     coefficients = np.zeros((4, 3, 10))  # of tau^k / k!
     coefficients[0, :, :3] = np.eye(3)
     coefficients[1, :, 3:6] = np.eye(3)
     coefficients[2, :, 3:] = np.hstack([jac, by_spin, drag_unit[:, None]])
-    coefficients[3, :, 3:] = np.hstack([jac @ jac, jac @ by_spin - km * _cross_matrix(accel),
+    coefficients[3, :, 3:] = np.hstack([jac @ jac, jac @ by_spin - by_cross @ _cross_matrix(accel),
                                         (jac @ drag_unit + drag_rate)[:, None]])
     powers = taus[:, None] ** np.arange(4) / [1.0, 1.0, 2.0, 6.0]
     return (powers @ coefficients.reshape(4, 30)).reshape(-1, 10)

@@ -1,11 +1,35 @@
 """Ball physics of the twin: flight, table bounce, paddle impact and shot aiming (table frame, SI).
 
-Flight: a = g - k_D |v| v + k_M (w x v), with k_D = rho A C_D / (2 m) and k_M = rho A r C_M / (2 m).
-This linear Magnus form is the one used in table-tennis robotics (Nakashima et al., "Modeling of
-rebound phenomenon of a rigid ball with friction and elastic effects", ACC 2010; Tebbe et al.,
-"Spin detection in robotic table tennis", ICRA 2020); it equals the lift-coefficient form
-F = 0.5 rho A C_L |v|^2 with C_L = C_M r|w|/|v|. Spin is constant in flight (its decay time is
-seconds, a flight is under one).
+Flight: a = g - k_D |v| v + k_M (w x v) / (1 + s_M |w x v| / |v|^2), with k_D = rho A C_D / (2 m),
+k_M = rho A r C_M / (2 m) and s_M = r C_M / C_L_max. That is the lift F = 0.5 rho A C_L |v|^2 along
+w x v with a lift coefficient that saturates in the spin parameter S = r |w x v| / |v|^2 (the spin
+across v, r|w|/|v| for pure topspin, backspin or sidespin):
+
+    C_L(S) = C_M S / (1 + C_M S / C_L_max)
+
+- Low spin: C_L ~ C_M S, the linear Magnus form of table-tennis robotics (Nakashima et al.,
+  "Modeling of rebound phenomenon of a rigid ball with friction and elastic effects", ACC 2010;
+  Tebbe et al., "Spin detection in robotic table tennis", ICRA 2020) with the twin's C_M = 0.6, kept.
+  The MPI ball-gun flights fix only the product C_M |w| (realdata.fit_spin_and_drag: ~12 rev/s at
+  S ~ 0.3 with this C_M), so the slope is carried over, not measured anew.
+- High spin: the form and the ceiling C_L_max = 0.5 are Stepanek's wind-tunnel fit for spinning
+  tennis balls, C_L = 1 / (2 + 1/S) (A. Stepanek, "The aerodynamics of tennis balls - the topspin
+  lob", Am. J. Phys. 56, 138 (1988)), i.e. C_M = 1 there. Our curve lies 10-30 % below his at
+  S = 0.3-3 (a smooth ball has less lift at low spin than a felt one) and is the project's choice,
+  not a table-tennis measurement: no tabulated C_L(S) of 40 mm balls was at hand. Miyazaki, Sakai,
+  Komatsu, Takahashi & Himeno ("Lift crisis of a spinning table tennis ball", Eur. J. Phys. 38,
+  024001 (2017); flight tests of Nittaku 3-star balls, 3e4 < Re < 9e4 or ~11-34 m/s, 0 < S < 1)
+  found no negative lift but a valley of C_L near S = 0.5, where at Re = 9e4 the lift all but
+  vanished: not modelled, the curve here is monotone.
+- The linear form (C_L_max = inf) gave C_L = 0.6 at S = 1 and grows without bound: 80 rev/s
+  topspin loops (S ~ 0.8) got ~2x the Magnus force.
+
+Drag: C_D constant. Play spans Re ~ 1e4-9e4, below a smooth sphere's drag crisis (Re ~ 3e5), where
+C_D stays ~0.4-0.5 (the subcritical plateau in E. Achenbach, "Experiments on the flow past spheres at
+very high Reynolds numbers", J. Fluid Mech. 54, 565 (1972)). Miyazaki et al. (2017) report C_D
+changing with Re and S, but no form to use; Cross & Lindsey ("Measurements of drag and lift on
+tennis balls in flight", Sports Eng. 17, 89 (2014)) found C_D independent of spin. So none here.
+Spin is constant in flight (its decay time is seconds, a flight is under one).
 
 Contacts (table and paddle) use the Nakashima 2010 impulse model for a hollow sphere
 (I = 2/3 m r^2): normal restitution e, Coulomb friction mu on the contact-point slip, and the
@@ -47,7 +71,8 @@ class BallParams:
     # C_D, e_t, mu_t: near realdata.fit_params_to_real on the 106 MPI ball-gun flights (C_D 0.52,
     # e_t 0.93, mu_t 0.13 without spin); literature: C_D 0.4-0.5, e_t ~0.9, mu_t 0.25 (Nakashima 2010)
     drag_coefficient: float = 0.5
-    magnus_coefficient: float = 0.6  # C_M above; gives lift C_L = C_M r|w|/|v| ~ 0.1-0.3 at play spins
+    magnus_coefficient: float = 0.6  # C_M: low-spin slope dC_L/dS (module docstring)
+    max_lift_coefficient: float = 0.5  # C_L_max: C_L(S) levels off here (Stepanek 1988); inf: linear
     table_restitution: float = 0.92  # vertical, e_t
     table_friction: float = 0.13  # mu_t
     paddle_restitution: float = 0.85  # normal, inverted rubber
@@ -63,19 +88,31 @@ class BallParams:
         """k_M = rho A r C_M / (2 m), dimensionless."""
         return (self.air_density * math.pi * self.radius**3 * self.magnus_coefficient / (2 * self.mass))
 
+    @property
+    def magnus_saturation(self) -> float:
+        """s_M = r C_M / C_L_max, m: the lift acceleration is k_M (w x v) / (1 + s_M |w x v| / |v|^2)."""
+        return self.radius * self.magnus_coefficient / self.max_lift_coefficient
+
+    def lift_coefficient(self, spin_parameter):
+        """C_L(S) = C_M S / (1 + C_M S / C_L_max) for S = r |w x v| / |v|^2 (scalar or array)."""
+        linear = self.magnus_coefficient * np.asarray(spin_parameter, float)
+        return linear / (1 + linear / self.max_lift_coefficient)
+
 
 def sample_ball_params(rng: np.random.Generator, spread: float = 0.05,
                        base: BallParams = BallParams()) -> BallParams:
     """Per-shot variation: each coefficient scaled by (1 + spread * N(0, 1)), restitutions kept < 1."""
-    def scaled(value: float, upper: float = math.inf) -> float:
-        return float(np.clip(value * (1 + spread * rng.standard_normal()), 0.0, upper))
+    def scaled(value: float, upper: float = math.inf, lower: float = 0.0) -> float:
+        return float(np.clip(value * (1 + spread * rng.standard_normal()), lower, upper))
 
     return replace(base, drag_coefficient=scaled(base.drag_coefficient),
                    magnus_coefficient=scaled(base.magnus_coefficient),
                    table_restitution=scaled(base.table_restitution, 0.99),
                    table_friction=scaled(base.table_friction),
                    paddle_restitution=scaled(base.paddle_restitution, 0.99),
-                   paddle_friction=scaled(base.paddle_friction))
+                   paddle_friction=scaled(base.paddle_friction),
+                   # drawn last, so the draws above stay those of the linear-lift twin
+                   max_lift_coefficient=scaled(base.max_lift_coefficient, lower=0.05))
 
 
 # ---------------------------------------------------------------- contacts
@@ -171,23 +208,26 @@ class Flight(NamedTuple):
     events: list[Event]
 
 
-def _accel(vx, vy, vz, wx, wy, wz, kd, km):
-    s = math.sqrt(vx * vx + vy * vy + vz * vz)
-    return (-kd * s * vx + km * (wy * vz - wz * vy),
-            -kd * s * vy + km * (wz * vx - wx * vz),
-            -GRAVITY - kd * s * vz + km * (wx * vy - wy * vx))
+def _accel(vx, vy, vz, wx, wy, wz, kd, km, ks):
+    s2 = vx * vx + vy * vy + vz * vz
+    s = math.sqrt(s2)
+    cx, cy, cz = wy * vz - wz * vy, wz * vx - wx * vz, wx * vy - wy * vx  # w x v
+    # k_M C_L(S) / (C_M S): the saturating lift; at rest (s2 = 0) w x v is 0 as well
+    lift = km / (1.0 + ks * math.sqrt(cx * cx + cy * cy + cz * cz) / s2) if s2 > 0.0 else 0.0
+    return (-kd * s * vx + lift * cx, -kd * s * vy + lift * cy, -GRAVITY - kd * s * vz + lift * cz)
 
 
-def _rk4_step(p, v, w, kd, km, h):
-    """One RK4 step of (p, v) on float tuples; w is constant in flight."""
+def rk4_step(p, v, w, kd, km, ks, h):
+    """One RK4 step of (p, v) on float tuples: kd = k_D, km = k_M, ks = s_M (BallParams); w is constant in
+    flight (robot.servo's fit steps it too)."""
     wx, wy, wz = w
-    a1 = _accel(*v, wx, wy, wz, kd, km)
+    a1 = _accel(*v, wx, wy, wz, kd, km, ks)
     v2 = tuple(v[i] + 0.5 * h * a1[i] for i in range(3))
-    a2 = _accel(*v2, wx, wy, wz, kd, km)
+    a2 = _accel(*v2, wx, wy, wz, kd, km, ks)
     v3 = tuple(v[i] + 0.5 * h * a2[i] for i in range(3))
-    a3 = _accel(*v3, wx, wy, wz, kd, km)
+    a3 = _accel(*v3, wx, wy, wz, kd, km, ks)
     v4 = tuple(v[i] + h * a3[i] for i in range(3))
-    a4 = _accel(*v4, wx, wy, wz, kd, km)
+    a4 = _accel(*v4, wx, wy, wz, kd, km, ks)
     p_new = tuple(p[i] + h / 6 * (v[i] + 2 * v2[i] + 2 * v3[i] + v4[i]) for i in range(3))
     v_new = tuple(v[i] + h / 6 * (a1[i] + 2 * a2[i] + 2 * a3[i] + a4[i]) for i in range(3))
     return p_new, v_new
@@ -217,7 +257,7 @@ def simulate_flight(p0, v0, w0, params: BallParams = BallParams(), dt: float = 1
     crosses it below NET_HEIGHT + r is stopped there ('net'). `stop(t, p, v)` is a continuous function;
     the flight ends where it goes from > 0 to <= 0, the state refined onto that point (see stop_at_y).
     """
-    kd, km, r = params.k_drag, params.k_magnus, params.radius
+    kd, km, ks, r = params.k_drag, params.k_magnus, params.magnus_saturation, params.radius
     p, v = tuple(map(float, p0)), tuple(map(float, v0))
     w = tuple(map(float, w0))
     t = 0.0
@@ -230,7 +270,7 @@ def simulate_flight(p0, v0, w0, params: BallParams = BallParams(), dt: float = 1
 
     while t < t_max - 1e-12:
         h = min(dt, t_max - t)
-        p1, v1 = _rk4_step(p, v, w, kd, km, h)
+        p1, v1 = rk4_step(p, v, w, kd, km, ks, h)
         # candidate events in this step as (fraction, kind); the earliest one is handled
         found = []
         f = _crossing(p[2] - r, p1[2] - r)
@@ -255,7 +295,7 @@ def simulate_flight(p0, v0, w0, params: BallParams = BallParams(), dt: float = 1
             times.append(t), ps.append(p), vs.append(v), ws.append(w)
             continue
         f, kind = min(found)
-        p, v = _rk4_step(p, v, w, kd, km, f * h)
+        p, v = rk4_step(p, v, w, kd, km, ks, f * h)
         t += f * h
         if kind == "bounce":
             p = (p[0], p[1], r)  # exactly on the surface, so the next step cannot re-detect it
@@ -277,22 +317,24 @@ def simulate_flight(p0, v0, w0, params: BallParams = BallParams(), dt: float = 1
 
 # ---------------------------------------------------------------- aiming
 
-def _fly_batch(p0, v0, w, kd, km, T, dt_max):
+def _fly_batch(p0, v0, w, kd, km, ks, T, dt_max):
     """Batched RK4 (no contacts) of N balls for their own time T (N,); positions (n+1, N, 3).
 
-    Works on (3, N) component rows with the cross product written out: np.cross costs ~10x more here.
+    The flight model of _accel. Works on (3, N) component rows with the cross product written out:
+    np.cross costs ~10x more here.
     """
     n = max(int(np.ceil(T.max() / dt_max)), 1)
     h = T / n
-    kd, km = kd.ravel(), km.ravel()
+    kd, km, ks = kd.ravel(), km.ravel(), ks.ravel()
     wx, wy, wz = w.T
 
     def accel(v):
         vx, vy, vz = v
-        drag = kd * np.sqrt(vx * vx + vy * vy + vz * vz)
-        return np.stack([-drag * vx + km * (wy * vz - wz * vy),
-                         -drag * vy + km * (wz * vx - wx * vz),
-                         -GRAVITY - drag * vz + km * (wx * vy - wy * vx)])
+        s2 = vx * vx + vy * vy + vz * vz
+        drag = kd * np.sqrt(s2)
+        cx, cy, cz = wy * vz - wz * vy, wz * vx - wx * vz, wx * vy - wy * vx
+        lift = km / (1 + ks * np.sqrt(cx * cx + cy * cy + cz * cz) / np.maximum(s2, 1e-300))
+        return np.stack([-drag * vx + lift * cx, -drag * vy + lift * cy, -GRAVITY - drag * vz + lift * cz])
 
     p, v = p0.T.copy(), v0.T.copy()
     track = [p]
@@ -338,6 +380,7 @@ def aim_shots(p_hit, target_bounce_xy, w0, params: BallParams | Sequence[BallPar
     plist = [params] * n_shots if isinstance(params, BallParams) else list(params)
     kd = np.array([q.k_drag for q in plist])[:, None]
     km = np.array([q.k_magnus for q in plist])[:, None]
+    ks = np.array([q.magnus_saturation for q in plist])[:, None]
     r = np.array([q.radius for q in plist])
     goal = np.column_stack([target, r])
     if flight_time is None:
@@ -352,14 +395,14 @@ def aim_shots(p_hit, target_bounce_xy, w0, params: BallParams | Sequence[BallPar
     todo = np.arange(n_shots)
     eps = 1e-4  # m/s, finite-difference step: RK4 is smooth, so 1e-4 gives ~1e-8 relative accuracy
     for _ in range(12):
-        p, g, T_, w_, kd_, km_ = p_hit[todo], goal[todo], T[todo], w0[todo], kd[todo], km[todo]
+        p, g, T_, w_, kd_, km_, ks_ = (a[todo] for a in (p_hit, goal, T, w0, kd, km, ks))
         m = len(todo)
         # ballistic guess without drag, then Newton
         v = (g - p - 0.5 * np.array([0.0, 0.0, -GRAVITY]) * T_[:, None] ** 2) / T_[:, None]
         for _ in range(10):
             trial = np.concatenate([v] + [v + eps * np.eye(3)[k] for k in range(3)])
             track = _fly_batch(np.tile(p, (4, 1)), trial, np.tile(w_, (4, 1)), np.tile(kd_, (4, 1)),
-                               np.tile(km_, (4, 1)), np.tile(T_, 4), dt_max)
+                               np.tile(km_, (4, 1)), np.tile(ks_, (4, 1)), np.tile(T_, 4), dt_max)
             end = track[-1].reshape(4, m, 3)
             residual = end[0] - g
             if np.abs(residual).max() < tol:

@@ -182,7 +182,8 @@ def fit_spin_and_drag(times, positions, velocities, bounce_index: int, params: B
     k_D from the work of drag: d/dt(|v|^2/2 + g z) = -k_D |v|^3 (gravity is conservative, Magnus does no
     work), a one-parameter least squares. Then, with k_D known and w constant, integrating the flight
     equation gives v(t) - v(0) - g t + k_D int |v| v dt = k_M w x (p(t) - p(0)): linear in (v(0), w).
-    The spin's size scales with 1 / C_M, which real flights alone cannot separate.
+    The spin's size scales with 1 / C_M, which real flights alone cannot separate. The fit is linear in
+    the lift; the spin is then scaled up to the saturating lift's (_saturated_spin).
     """
     flying = times <= times[bounce_index] - CONTACT_GAP
     t, p, v = times[flying] - times[0], positions[flying], velocities[flying]
@@ -199,7 +200,16 @@ def fit_spin_and_drag(times, positions, velocities, bounce_index: int, params: B
     skew -= skew.transpose(0, 2, 1)
     design = np.concatenate([np.tile(np.eye(3), (len(t), 1)), -params.k_magnus * skew.reshape(-1, 3)], axis=1)
     solution, *_ = np.linalg.lstsq(design, lhs.reshape(-1), rcond=None)
-    return k_drag, solution[3:]
+    return k_drag, _saturated_spin(solution[3:], v.mean(axis=0), params)
+
+
+def _saturated_spin(linear_spin: np.ndarray, velocity: np.ndarray, params: BallParams) -> np.ndarray:
+    """The spin whose saturating lift (ball.py) equals the linear fit's k_M w x v at the flight's mean
+    velocity: the lift factor 1 / (1 + s_M |w x v| / |v|^2) inverted for the spin across v."""
+    speed = np.linalg.norm(velocity)
+    across = np.linalg.norm(np.cross(linear_spin, velocity)) / speed  # |w_lin| across v, rad/s
+    # a linear lift beyond what the saturating one can give (factor < 0.2) is taken as 5x the linear spin
+    return linear_spin / max(1.0 - params.magnus_saturation * across / speed, 0.2)
 
 
 def fit_params_to_real(flights: list[dict], base: BallParams = DEFAULT_PARAMS) -> dict:
