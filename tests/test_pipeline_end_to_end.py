@@ -111,7 +111,8 @@ def test_robot_ablation_covers_every_combination_within_the_limits(tiny_run):
     assert len(combos.drop_duplicates(["accelerations", "timing", "inputs", "controller"])) == 16
     assert (table["total"] == n_test).all() and (table["limit_breaches"] == 0).all()
     assert (table["controller"] == "perfect").sum() == 1 and (table["servo_fit"] == "paper").sum() == 1
-    assert table.loc[table["changed"] == "none", "controller"].tolist() == ["servo", "anticipatory", "perfect"]
+    configured = table.loc[table["changed"] == "none", "controller"].tolist()
+    assert configured == ["servo", "anticipatory", "perfect"]
     servo = pd.read_csv(tiny_run / "reports/tables/servo_accuracy.csv")
     assert set(servo["fit"]) == {"paper", "model"} and set(servo["frames_after_hit"]) == {10, 15, 20}
 
