@@ -330,3 +330,14 @@ def test_read_motive_csv_names_a_body_missing_a_column(tmp_path):
     path.write_text("\r\n".join(lines))
     with pytest.raises(ValueError, match=r"rigid body 'Paddle' lacks the columns \['x'\]"):
         read_motive_csv(path)
+
+
+def test_a_gap_of_max_gap_s_on_a_nanosecond_or_a_microsecond_clock_is_bridged():
+    """12 ticks of 240 Hz is 50 ms: 50.000004 ms with ticks rounded to the ns, 50.000 ms in a Motive CSV
+    (times to the us). Both are bridged at max_gap_s = 0.05; a gap 2 us longer is not."""
+    quats = np.tile([0.0, 0.0, 0.0, 1.0], (2, 1))
+    positions = np.zeros((2, 3))
+    for gap_ns, bridged in ((50_000_004, True), (50_000_000, True), (50_002_000, False)):
+        _, _, valid = resample_poses(np.array([0, gap_ns]), positions, quats, np.array([25_000_000]),
+                                     max_gap_s=0.05)
+        assert valid[0] == bridged, gap_ns

@@ -15,6 +15,7 @@ from workflow_util import ROBOT_LIMITS, ROBOT_URDF
 
 from pingpong.frames import FRAME_NS, N_INPUT, STRIKE_Y
 from pingpong.robot.controllers import Controller
+from pingpong.robot.episode import EpisodeParams
 from pingpong.robot.evaluate import Prediction, SimSettings, simulate_hit
 from pingpong.robot.flights import HitFlight, hit_flight
 from pingpong.robot.model import PADDLE_RADIUS, frame_pose, load_robot
@@ -35,7 +36,9 @@ HIT_FRAME = 50
 N_FRAMES = 40
 FRAMES = np.arange(-30, 1)
 CONTROLLER = Controller("anticipatory", 1.0, 1.0)  # moves before the hit, so the paddle path is not trivial
-SETTINGS = SimSettings()
+# the paper's timing and its quadratic servo fit, which is exact on the straight gravity-free flight below
+# (the model fit assumes gravity, drag and lift)
+SETTINGS = SimSettings(EpisodeParams(servo_fit="paper"))
 
 
 def synthetic_hit(offset_ns: int, strike_x: float = 0.45):

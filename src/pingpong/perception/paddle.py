@@ -15,6 +15,11 @@ from scipy.spatial.transform import Rotation, Slerp
 from pingpong.common.rigid import apply_transform, rotate_matrices
 from pingpong.frames import ROT_COLUMNS
 
+# the coarsest clock the readers take: Motive CSV exports give times to the microsecond, so a dropout of
+# exactly max_gap_s reads as 50.000 ms there and as 50.000004 ms in a stream whose 240 Hz ticks are
+# rounded to the nanosecond; within this of the limit a gap counts as at the limit
+GAP_TOLERANCE_NS = 1_000
+
 
 def resample_poses(
     time_ns: np.ndarray,
@@ -57,7 +62,7 @@ def resample_poses(
     t0, t1 = time_ns[i], time_ns[i + 1]
     on_sample = (targets == t0) | (targets == t1)
     valid = (targets >= time_ns[0]) & (targets <= time_ns[-1])
-    valid &= (t1 - t0 <= round(max_gap_s * 1e9)) | on_sample
+    valid &= (t1 - t0 <= round(max_gap_s * 1e9) + GAP_TOLERANCE_NS) | on_sample
     i, t0, t1 = i[valid], t0[valid], t1[valid]
     weight = ((targets[valid] - t0) / (t1 - t0))[:, None]
     out_positions[valid] = (1 - weight) * positions[i] + weight * positions[i + 1]
