@@ -137,7 +137,8 @@ def run_episode(robot: Robot, ball_times, ball_positions,
                 predictions: tuple[np.ndarray, np.ndarray] | None = None,
                 params: EpisodeParams = EpisodeParams(),
                 alpha: np.ndarray | Callable[[float], float] | None = None,
-                q0: np.ndarray | None = None, seen: tuple[np.ndarray, np.ndarray] | None = None) -> dict:
+                q0: np.ndarray | None = None, seen: tuple[np.ndarray, np.ndarray] | None = None,
+                schedule: GoalSchedule | None = None) -> dict:
     """Simulate the robot over one post-hit flight and say whether it hits the ball.
 
     ball_times (N,) s from the hit, ball_positions (N, 3): the ball's track (e.g. twin.ball.simulate_flight
@@ -145,6 +146,8 @@ def run_episode(robot: Robot, ball_times, ball_positions,
     e.g. frames -30..-1. alpha overrides the alpha1/alpha2/alpha_servo schedule: an array over
     episode_times(...) or a function of t. q0: start configuration at rest (default: home). seen:
     (times, positions) of the ball as the servo sees it (flights.HitFlight; default: the track itself).
+    schedule: goal_schedule's result for these arguments, when the caller has it (the servo fits are the
+    episode's costliest part; evaluate.simulate_hit needs them for its alphas too).
     Returns hit, end_distance_m, strike_time_s, ball_strike (3,), paddle_strike (3,), the limit checks
     (limits_ok, max_velocity_ratio, max_acceleration_ratio, min_position_margin), servo_no_estimate
     (GoalSchedule) and the trajectory
@@ -156,8 +159,9 @@ def run_episode(robot: Robot, ball_times, ball_positions,
     t_strike, ball_strike = strike_crossing(ball_times, ball_positions, control.strike_y)
     t_end = t_strike if np.isfinite(t_strike) else ball_times[-1]
     times = episode_times(t_end, params)
-    seen_times, seen_positions = (ball_times, ball_positions) if seen is None else map(np.asarray, seen)
-    schedule = goal_schedule(seen_times, seen_positions, t_end, predictions, params)
+    if schedule is None:
+        seen_times, seen_positions = (ball_times, ball_positions) if seen is None else map(np.asarray, seen)
+        schedule = goal_schedule(seen_times, seen_positions, t_end, predictions, params)
     goal_times, goals = schedule.times, schedule.goals
     if alpha is None:
         alphas = alpha_schedule(times, schedule.first_servo, params)

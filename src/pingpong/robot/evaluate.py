@@ -115,9 +115,11 @@ def simulate_hit(robot: Robot, flight: HitFlight, prediction: Prediction, contro
     t_end = t_strike if np.isfinite(t_strike) else flight.times[-1]
     times = episode_times(t_end, params)
     seen = (flight.seen_times, flight.seen_positions)
-    first_servo = goal_schedule(*seen, t_end, goals, params).first_servo
+    schedule = goal_schedule(*seen, t_end, goals, params)
+    first_servo = schedule.first_servo
     alpha = step_alphas(times, first_servo, prediction, controller, params)
-    out = run_episode(robot, flight.times, flight.positions, goals, params, alpha=alpha, seen=seen)
+    out = run_episode(robot, flight.times, flight.positions, goals, params, alpha=alpha, seen=seen,
+                      schedule=schedule)
     out["anticipated"] = bool(np.any(alpha[times < first_servo - 1e-12] > 0))
     return out
 
