@@ -82,7 +82,7 @@ wildcard_constraints:
     fold=r"\d+",
 
 
-TRUTH_TABLES = ["ball", "shots", "events", "people", "paddles"]
+TRUTH_TABLES = ["ball", "shots", "events", "people", "paddles", "strike_oracle"]
 
 
 def raw_outputs():
@@ -125,7 +125,7 @@ def twin_reports():
     if config["source"] != "twin":
         return []
     return ["reports/tables/twin_vs_real.md", "reports/tables/perception_accuracy.md",
-            "reports/tables/curation_accuracy.md"]
+            "reports/tables/curation_accuracy.md", "reports/tables/uncertainty_oracle.md"]
 
 
 # Report tables by stage, each shown as a page in the HTML report (workflow/rules/report.smk).
@@ -135,7 +135,7 @@ REPORT_TABLES = {
     "perception": ["sync", *(["perception_accuracy"] if TWIN_ONLY else [])],
     "curation": ["curation", *(["curation_accuracy"] if TWIN_ONLY else [])],
     "learning": ["cv_results", "strike_error", "strike_error_by_frame"],
-    "uncertainty": ["uncertainty", "uncertainty_verdict", "uncertainty_by_frame"],
+    "uncertainty": ["uncertainty", "uncertainty_verdict", "uncertainty_by_frame", "uncertainty_oracle"],
     "robot": ["robot", "robot_limits", "robot_ablation", "servo_accuracy"],
 }
 

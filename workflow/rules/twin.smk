@@ -30,6 +30,8 @@ rule twin_simulate:
         fault_rates=TWIN["fault_rates"],
         optitrack_hz=TWIN["optitrack_hz"],
         bystander_rate=TWIN["bystander_rate"],
+        homoscedastic=TWIN["homoscedastic"],
+        oracle_draws=TWIN["oracle_draws"],
         code=code("twin_simulate"),
     log:
         "logs/twin_simulate/{session}.log",
@@ -46,6 +48,7 @@ rule report_twin_flights:
     input:
         balls=expand("raw/twin_truth/{session}/ball.parquet", session=sessions()),
         shots=expand("raw/twin_truth/{session}/shots.parquet", session=sessions()),
+        events=expand("raw/twin_truth/{session}/events.parquet", session=sessions()),
         real="data/realdata/mpi_ball_gun",
     output:
         md="reports/tables/twin_vs_real.md",

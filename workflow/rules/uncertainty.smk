@@ -98,3 +98,29 @@ rule report_uncertainty:
         CONDA_ENV
     script:
         STAGE_SCRIPT
+
+
+# Twin only: the final model's error against the twin's strike oracle, and the oracle's causes.
+rule report_uncertainty_oracle:
+    input:
+        dataset="processed/dataset.parquet",
+        predictions="processed/predictions.parquet",
+        shots=expand("raw/twin_truth/{session}/shots.parquet", session=sessions()),
+        oracle=expand("raw/twin_truth/{session}/strike_oracle.parquet", session=sessions()),
+    output:
+        md="reports/tables/uncertainty_oracle.md",
+        csv="reports/tables/uncertainty_oracle.csv",
+        figure=report(
+            "reports/figures/uncertainty_oracle_std.png",
+            caption="../report/uncertainty_oracle_std.rst",
+            category="uncertainty",
+        ),
+    params:
+        sessions=sessions(),
+        code=code("report_uncertainty_oracle"),
+    log:
+        "logs/report_uncertainty_oracle.log",
+    conda:
+        CONDA_ENV
+    script:
+        STAGE_SCRIPT

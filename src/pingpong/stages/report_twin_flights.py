@@ -1,8 +1,11 @@
-"""Rule report_twin_flights: the twin's ball flights beside the real MPI ball-gun flights."""
+"""Rule report_twin_flights: the twin's ball flights beside the real MPI ball-gun flights, and the twin's
+shot statistics beside published figures of human play."""
+
+import pandas as pd
 
 from pingpong.common.artifacts import read_table
-from pingpong.reports.tables import write_report_table
 from pingpong.reports.twin_flights import twin_flight_stats
+from pingpong.reports.twin_shots import good_shot_table, shot_stats_table, write_sections
 from pingpong.twin import truth
 from pingpong.twin.realdata import compare_flights_table, flight_stats, load_real_flights
 
@@ -14,13 +17,29 @@ bounce; the energy speed removes gravity so that its loss rate shows drag alone.
 shots are faster and carry topspin, the ball gun's do not: compare the bounce ratios and angles
 for the physics, the speeds for the setting."""
 
+SHOT_CAPTION = """The twin's {n} good shots (outcome 'ok', {sessions} sessions), from the shots' outgoing
+velocity and spin and the first bounce of each shot in the events, beside published figures of human
+play (`pingpong.reports.published_shots`; "no published figure found" where the search found none).
+`twin` is the median (p50), or the share on share rows; twin_p10 and twin_p90 the 10th and 90th
+percentiles. Spin types by the Magnus force F = w x v_out (`pingpong.reports.twin_shots.spin_types`):
+sidespin-dominant when the horizontal part of F across the flight exceeds |F|/2, else backspin when
+F_z > 0 and topspin when F_z < 0. Per-stroke rows where the shots name their strokes. The published
+figures are means, ranges or records of other players and setups, not percentiles of this lab."""
+
 
 def main(ctx):
-    twin = []
-    for ball_path, shots_path in zip(ctx.input.balls, ctx.input.shots, strict=True):
-        twin += twin_flight_stats(read_table(ball_path, truth.BALL), read_table(shots_path, truth.SHOTS))
+    twin, good = [], []
+    for ball_path, shots_path, events_path in zip(ctx.input.balls, ctx.input.shots, ctx.input.events,
+                                                  strict=True):
+        shots = read_table(shots_path, truth.SHOTS)
+        twin += twin_flight_stats(read_table(ball_path, truth.BALL), shots)
+        good.append(good_shot_table(shots, read_table(events_path, truth.EVENTS)))
     real = [flight_stats(f["times"], f["positions"], f["velocities"])
             for f in load_real_flights(ctx.input.real)]
-    caption = CAPTION.format(real_n=len(real), twin_n=len(twin))
-    write_report_table(compare_flights_table(twin, real), ctx.output.md, ctx.output.csv,
-                       "Twin flights against real flights", caption)
+    good = pd.concat(good, ignore_index=True)
+    write_sections(ctx.output.md, ctx.output.csv, "Twin flights and shots against real play", [
+        ("flights", "Flights against the MPI ball gun", CAPTION.format(real_n=len(real), twin_n=len(twin)),
+         compare_flights_table(twin, real)),
+        ("shots", "Shot statistics of the twin beside published figures of human play",
+         SHOT_CAPTION.format(n=len(good), sessions=len(ctx.input.shots)), shot_stats_table(good)),
+    ])

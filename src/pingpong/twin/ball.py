@@ -46,7 +46,7 @@ from dataclasses import dataclass, replace
 from typing import NamedTuple
 
 import numpy as np
-from scipy.optimize import brentq, root
+from scipy.optimize import brentq, least_squares, root
 
 from pingpong.frames import (
     BALL_MASS,
@@ -191,6 +191,31 @@ def paddle_for_outgoing(v_in, v_out, params: BallParams = BallParams(),
     return n, speed * n
 
 
+def paddle_for_spin(v_in, w_in, v_out, w_out, params: BallParams = BallParams(),
+                    start: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """A paddle (unit normal, velocity) whose impact turns v_in, w_in into v_out and, as near as it can,
+    w_out: how a player brushes the ball to give it spin.
+
+    The impact fixes the spin about the normal (friction acts in the face plane) and caps the
+    friction's share, so not every spin can be given: the least-squares paddle of scipy.least_squares
+    over the normal and the 3-vector velocity matches v_out (weighted 10x) and the spin (as r w, m/s)
+    as well as the impact allows. Starts from `start` (normal, velocity) or else paddle_for_outgoing's
+    paddle (no brushing). The caller flies what paddle_impact gives for the returned paddle.
+    """
+    v_in, w_in, v_out, w_out = (np.asarray(a, float) for a in (v_in, w_in, v_out, w_out))
+    n0, vp0 = start if start is not None else paddle_for_outgoing(v_in, v_out, params, w_in=w_in)
+    r = params.radius
+
+    def residual(x):
+        n = x[:3] / np.linalg.norm(x[:3])
+        v, w = paddle_impact(v_in, w_in, n, x[3:], params)
+        return np.concatenate([10 * (v - v_out), r * (w - w_out)])
+
+    sol = least_squares(residual, np.concatenate([n0, vp0]), x_scale=np.array([1, 1, 1, 10, 10, 10.0]),
+                        xtol=1e-8, ftol=1e-8, max_nfev=200)
+    return sol.x[:3] / np.linalg.norm(sol.x[:3]), sol.x[3:]
+
+
 # ---------------------------------------------------------------- flight
 
 class Event(NamedTuple):
@@ -317,36 +342,41 @@ def simulate_flight(p0, v0, w0, params: BallParams = BallParams(), dt: float = 1
 
 # ---------------------------------------------------------------- aiming
 
-def _fly_batch(p0, v0, w, kd, km, ks, T, dt_max):
-    """Batched RK4 (no contacts) of N balls for their own time T (N,); positions (n+1, N, 3).
+def accel_rows(v, w, kd, km, ks):
+    """The flight model of _accel on (3, N) component rows (v, w) with per-ball kd, km, ks (N,).
 
-    The flight model of _accel. Works on (3, N) component rows with the cross product written out:
-    np.cross costs ~10x more here.
+    The cross product is written out: np.cross costs ~10x more here.
     """
+    vx, vy, vz = v
+    wx, wy, wz = w
+    s2 = vx * vx + vy * vy + vz * vz
+    drag = kd * np.sqrt(s2)
+    cx, cy, cz = wy * vz - wz * vy, wz * vx - wx * vz, wx * vy - wy * vx
+    lift = km / (1 + ks * np.sqrt(cx * cx + cy * cy + cz * cz) / np.maximum(s2, 1e-300))
+    return np.stack([-drag * vx + lift * cx, -drag * vy + lift * cy, -GRAVITY - drag * vz + lift * cz])
+
+
+def rk4_rows(p, v, w, kd, km, ks, h):
+    """One RK4 step of N balls on (3, N) rows (h a scalar or (N,) step in s): new (p, v)."""
+    a1 = accel_rows(v, w, kd, km, ks)
+    v2 = v + 0.5 * h * a1
+    a2 = accel_rows(v2, w, kd, km, ks)
+    v3 = v + 0.5 * h * a2
+    a3 = accel_rows(v3, w, kd, km, ks)
+    v4 = v + h * a3
+    return (p + h / 6 * (v + 2 * v2 + 2 * v3 + v4),
+            v + h / 6 * (a1 + 2 * a2 + 2 * a3 + accel_rows(v4, w, kd, km, ks)))
+
+
+def _fly_batch(p0, v0, w, kd, km, ks, T, dt_max):
+    """Batched RK4 (no contacts) of N balls for their own time T (N,); positions (n+1, N, 3)."""
     n = max(int(np.ceil(T.max() / dt_max)), 1)
     h = T / n
     kd, km, ks = kd.ravel(), km.ravel(), ks.ravel()
-    wx, wy, wz = w.T
-
-    def accel(v):
-        vx, vy, vz = v
-        s2 = vx * vx + vy * vy + vz * vz
-        drag = kd * np.sqrt(s2)
-        cx, cy, cz = wy * vz - wz * vy, wz * vx - wx * vz, wx * vy - wy * vx
-        lift = km / (1 + ks * np.sqrt(cx * cx + cy * cy + cz * cz) / np.maximum(s2, 1e-300))
-        return np.stack([-drag * vx + lift * cx, -drag * vy + lift * cy, -GRAVITY - drag * vz + lift * cz])
-
-    p, v = p0.T.copy(), v0.T.copy()
+    p, v, w = p0.T.copy(), v0.T.copy(), w.T
     track = [p]
     for _ in range(n):
-        a1 = accel(v)
-        v2 = v + 0.5 * h * a1
-        a2 = accel(v2)
-        v3 = v + 0.5 * h * a2
-        a3 = accel(v3)
-        v4 = v + h * a3
-        p = p + h / 6 * (v + 2 * v2 + 2 * v3 + v4)
-        v = v + h / 6 * (a1 + 2 * a2 + 2 * a3 + accel(v4))
+        p, v = rk4_rows(p, v, w, kd, km, ks, h)
         track.append(p)
     return np.stack(track).transpose(0, 2, 1)
 
@@ -364,14 +394,15 @@ def _net_clearance(track: np.ndarray, r: float) -> np.ndarray:
 
 def aim_shots(p_hit, target_bounce_xy, w0, params: BallParams | Sequence[BallParams] = BallParams(),
               flight_time=None, speed_hint: float = 9.0, net_margin: float = 0.03,
-              dt_max: float = 0.02, tol: float = 1e-5) -> tuple[np.ndarray, np.ndarray]:
+              dt_max: float = 0.02, tol: float = 1e-5, strict: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """Outgoing velocities (N, 3) that bounce N balls at targets (N, 2), and their flight times (N,) s.
 
     Shooting on the time of flight T to the bounce: for a given T the bounce point (x, y, z = r) is
     3 equations in v0, solved by Newton with a finite-difference Jacobian, all shots in one batch.
     T defaults to distance / speed_hint; shots that do not clear the net by net_margin (m) get a 10%
     longer (higher) flight and are solved again. RK4 at dt <= 20 ms is accurate to ~1e-6 m here
-    (checked against simulate_flight at 1 ms).
+    (checked against simulate_flight at 1 ms). speed_hint may be one per shot (N,). strict=False gives
+    NaN rows for shots that do not converge or cannot clear the net, instead of raising.
     """
     p_hit = np.atleast_2d(np.asarray(p_hit, float))
     n_shots = len(p_hit)
@@ -409,15 +440,19 @@ def aim_shots(p_hit, target_bounce_xy, w0, params: BallParams | Sequence[BallPar
                 break
             jac = np.stack([(end[k + 1] - end[0]) / eps for k in range(3)], axis=-1)  # (m, 3, 3)
             v = v - np.linalg.solve(jac, residual[..., None])[..., 0]
-        if np.abs(residual).max() >= tol:
+        missed = ~(np.abs(residual).max(axis=1) < tol)
+        if missed.any() and strict:
             raise ValueError(f"aiming did not converge: a bounce misses by {np.abs(residual).max()} m")
-        v0[todo] = v
-        clear = _net_clearance(track[:, :m], r[todo]) >= net_margin
+        v0[todo] = np.where(missed[:, None], np.nan, v)
+        clear = (_net_clearance(track[:, :m], r[todo]) >= net_margin) | missed
         todo = todo[~clear]
         if len(todo) == 0:
             return v0, T
         T[todo] *= 1.1
-    raise ValueError(f"shots {todo.tolist()} cannot clear the net within the flight times tried")
+    if strict:
+        raise ValueError(f"shots {todo.tolist()} cannot clear the net within the flight times tried")
+    v0[todo] = np.nan
+    return v0, T
 
 
 def aim_shot(p_hit, target_bounce_xy, w0, params: BallParams = BallParams(), flight_time: float | None = None,

@@ -1,12 +1,12 @@
 """A session of rallies: ball physics and both players' strokes, as ground-truth tables.
 
-Each shot: the hitter picks a target bounce point (unevenly spread, as in the paper's data, where
-more shots went to one side) and, for a share of shots, executes a fault (net, out, a short ball
-that bounces twice, or misses the ball). The outgoing velocity comes from `aim_shots`; the paddle
-that produces it from `paddle_for_outgoing`; the spin the rubber gives from `paddle_impact`, and
-the aim is re-solved with that spin until they agree. The flight is then simulated and the
-*actual* outcome (not the intent) is what the truth records. The players' strokes are planned
-afterwards from all their hits, so their bodies anticipate the actual paddle pose at each hit.
+Each shot: the hitter makes the four decisions of `pingpong.twin.repertoire` (stroke, intent, late
+change, execution) and, for a share of shots, executes a fault (net, out, a short ball that bounces
+twice, or misses the ball). The outgoing velocity comes from `aim_shots` with the stroke's spin; the
+paddle that brushes the ball for that spin from `paddle_for_spin`; the spin the rubber actually gives
+from `paddle_impact`, and the shot is re-aimed with it. The flight is then simulated and the *actual*
+outcome (not the intent) is what the truth records. The players' strokes are planned afterwards from
+all their hits, so their bodies show each decision from the time it was made.
 """
 
 from dataclasses import dataclass
@@ -19,22 +19,31 @@ from pingpong.twin.ball import (
     BallParams,
     Flight,
     aim_shots,
-    paddle_for_outgoing,
+    paddle_for_spin,
     paddle_impact,
-    sample_ball_params,
     simulate_flight,
     stop_at_y,
 )
 from pingpong.twin.players import bystander_joints, sample_player_style
+from pingpong.twin.repertoire import (
+    STROKES,
+    ShotContext,
+    ShotTiming,
+    Tactics,
+    choose_stroke,
+    draw_execution,
+    draw_intent,
+    draw_late,
+    sample_tactics,
+    spin_vector,
+    target_strike_x,
+)
 from pingpong.twin.strokes import Hit, evaluate_player, paddle_centre_at_impact, plan_player
 
 SIDES = {1: "near", -1: "far"}  # the player at +y is 'near', at -y 'far'
 SESSION_EPOCH_NS = 1_767_225_600_000_000_000  # 2026-01-01T00:00Z; session k starts k hours later
-TARGET_SIDES = (-1, 0, 1)  # target lanes in the hitter's own frame: backhand side, middle, forehand side
-TARGET_WEIGHTS = (0.45, 0.20, 0.35)  # uneven, like the paper's data
-TOPSPIN = 2 * np.pi * 40  # rad/s, the spin guess the aim starts from (40 rev/s)
-LATE_CHANGE_RATE = 0.15  # share of hits with a late change of intent
-LOWEST_HIT_Z = 0.0  # m: a ball lower than the table surface at the hitting plane is missed
+MIN_STROKE_GAP = 0.62  # s: a ball back sooner after a player's last stroke is missed (strokes.py needs 0.6)
+LOWEST_HIT_Z = -0.2  # m: a ball lower at the hitting plane is missed (players lift balls below the table)
 
 
 @dataclass(frozen=True)
@@ -52,36 +61,47 @@ class SessionTruth:
     events: pd.DataFrame  # time_ns, kind, rally, shot, side, x, y, z
     people: pd.DataFrame  # 100 Hz: time_ns, person, 75 joint columns
     paddles: pd.DataFrame  # OptiTrack rate: time_ns, player, px, py, pz, r00..r22
+    records: list  # ShotRecord of every good shot, for the oracle (times before the epoch)
 
 
-def _target(rng, side: int, intent: str) -> np.ndarray:
-    """Bounce target (x, y) on the far half for a hitter at `side`, by intent."""
-    lane = rng.choice(TARGET_SIDES, p=TARGET_WEIGHTS)
-    x = float(np.clip(side * lane * 0.45 + rng.normal(0, 0.12), -0.65, 0.65))
-    y = -side * rng.uniform(0.35, 1.15)
-    if intent == "out":
+def _fault_target(rng, target: np.ndarray, side: int, fault: str) -> np.ndarray:
+    """The bounce point a fault puts the ball at instead of the target (x, y)."""
+    x, y = target
+    if fault == "out":
         if rng.random() < 0.5:
             y = -side * rng.uniform(1.45, 1.75)
         else:
             x = np.sign(x or 1.0) * rng.uniform(0.85, 1.05)
-    elif intent == "double_bounce":
+    elif fault == "double_bounce":
         y = -side * rng.uniform(0.12, 0.25)
     return np.array([x, y])
 
 
-def _aim(p_hit, v_in, w_in, target, params: BallParams, intent: str):
-    """Outgoing velocity and spin, and the paddle (normal, velocity) that produce them."""
-    speed = {"double_bounce": 3.0, "net": 7.0}.get(intent, 9.0)
-    w = np.array([-np.sign(target[1]) * TOPSPIN, 0.0, 0.0])  # topspin about x for travel along y
-    for _ in range(3):
-        v_out, _ = aim_shots(p_hit, target, w, params, speed_hint=speed,
-                             net_margin=-0.05 if intent == "net" else 0.03)
-        v_out = v_out[0]
-        if intent == "net":  # aim into the tape: drop the shot until it no longer clears
+def _aim(p_hit, v_in, w_in, target, w_wanted, speed, params: BallParams, fault: str):
+    """Outgoing velocity and spin, and the paddle (normal, velocity) that produce them.
+
+    Aimed with the spin wanted, the paddle brushes the ball for it (paddle_for_spin); the shot is
+    re-aimed with the spin the impact actually gives and the paddle solved again, so the spin flown is
+    the paddle's, and the bounce lands within millimetres of the target.
+    """
+    w, paddle = w_wanted, None
+    for _ in range(2):
+        v_out = _aim_slower(p_hit, target, w, params, speed, -0.05 if fault == "net" else 0.03)
+        if fault == "net":  # aim into the tape: drop the shot until it no longer clears
             v_out = v_out * np.array([1.0, 0.93, 0.75])
-        normal, v_paddle = paddle_for_outgoing(v_in, v_out, params, w_in=w_in)
-        v_chk, w = paddle_impact(v_in, w_in, normal, v_paddle, params)
-    return v_chk, w, normal, v_paddle
+        paddle = paddle_for_spin(v_in, w_in, v_out, w, params, start=paddle)
+        v_chk, w = paddle_impact(v_in, w_in, *paddle, params)
+    return v_chk, w, paddle[0], paddle[1]
+
+
+def _aim_slower(p_hit, target, w, params: BallParams, speed: float, net_margin: float) -> np.ndarray:
+    """aim_shots' velocity, at a lower speed hint (a higher, slower ball) when the net is in the way."""
+    for factor in (1.0, 0.6, 0.35):
+        try:
+            return aim_shots(p_hit, target, w, params, speed_hint=speed * factor, net_margin=net_margin)[0][0]
+        except ValueError:
+            continue
+    raise ValueError(f"no shot from {p_hit} clears the net to {target} with spin {w} rad/s")
 
 
 def _outcome(flight: Flight, side: int) -> str:
@@ -155,11 +175,52 @@ def _hitting_plane(rng, side: int) -> float:
     return side * (TABLE_HALF_LENGTH + rng.uniform(0.05, 0.35))
 
 
-def simulate_rallies(n_rallies: int, rates: FaultRates, rng: np.random.Generator):
-    """Ball flights of all rallies: the recorder, each player's hits and tracking cues, the end time (s)."""
+@dataclass(frozen=True)
+class ShotRecord:
+    """A good shot's decisions as the twin made them: what the oracle re-draws from."""
+
+    rally: int
+    shot: int
+    t_hit: float  # s, session clock before the epoch
+    tactics: Tactics
+    ctx: ShotContext
+    timing: ShotTiming
+    intent: dict  # draw_intent's, one draw
+    final: dict  # draw_late's on it
+    execution: dict  # draw_execution's, one draw
+    spin_ratio: float  # |spin the paddle gave| / |spin wanted|
+    strike_x: float  # m, where the flight crossed the far strike line
+
+
+def _decide(rng, tactics: Tactics, ctx: ShotContext, ball: BallParams):
+    """The four decisions of a shot, in the order they are made (pingpong.twin.repertoire)."""
+    timing = choose_stroke(rng, tactics, ctx)
+    intent = draw_intent(rng, tactics, timing, ctx, 1)
+    final = draw_late(rng, tactics, timing, ctx, intent)
+    execution = draw_execution(rng, tactics, timing, ctx, 1, ball)
+    return timing, intent, final, execution
+
+
+def executed_shot(ctx: ShotContext, timing: ShotTiming, intent: dict, final: dict, execution: dict):
+    """Bounce targets (n, 2), speed hints (n,) and wanted spins (n, 3) of decided shots."""
+    target = final["target"] + execution["target_error"]
+    # an error towards the net leaves the ball at least 10 cm past it (nearer, no shot clears the net)
+    target[:, 1] = -ctx.side * np.maximum(-ctx.side * target[:, 1], 0.10)
+    speed = intent["speed"] * execution["speed_factor"]
+    w = spin_vector(target, ctx.p_hit, intent["spin"] * execution["spin_factor"], intent["tilt"],
+                    STROKES[timing.stroke].backspin)
+    return target, speed, w
+
+
+def simulate_rallies(n_rallies: int, rates: FaultRates, rng: np.random.Generator, homoscedastic: bool = False,
+                     ball: BallParams = BallParams()):
+    """Ball flights of all rallies: the recorder, each player's hits and tracking cues, the end time (s),
+    the good shots' decisions (ShotRecord) and both players' tactics."""
     rec = _Recorder()
     hits = {1: [], -1: []}
     track = {1: ([], []), -1: ([], [])}
+    tactics = {s: sample_tactics(rng, homoscedastic) for s in (1, -1)}
+    records = []
     t = 1.0
     for rally in range(n_rallies):
         side = 1 if rally % 2 == 0 else -1  # the serve alternates
@@ -167,37 +228,49 @@ def simulate_rallies(n_rallies: int, rates: FaultRates, rng: np.random.Generator
         # the server's toss: the ball drops into the hitting plane (a drive-like serve; see README)
         p = np.array([rng.uniform(-0.4, 0.4), _hitting_plane(rng, side), rng.uniform(0.15, 0.35)])
         v_in, w_in = np.array([0.0, 0.0, -1.0]), np.zeros(3)
+        last_hit = {1: -np.inf, -1: -np.inf}
         for shot in range(10_000):
-            params = sample_ball_params(rng)
-            intent = _intent(rng, rates, can_miss=shot > 0)
-            if shot > 0 and p[2] < LOWEST_HIT_Z:  # the ball dropped below what a player can reach
-                intent = "miss"
-            if intent == "miss":  # the swing passes beside the ball, which flies on
+            ctx = ShotContext(p, v_in, w_in, side, serve=shot == 0)
+            timing, intent, final, execution = _decide(rng, tactics[side], ctx, ball)
+            params = execution["params"][0]
+            fault = _intent(rng, rates, can_miss=shot > 0)
+            late_ball = shot > 0 and (p[2] < LOWEST_HIT_Z or t - last_hit[side] < MIN_STROKE_GAP)
+            if fault == "miss" or late_ball:  # the swing passes beside the ball, which flies on
                 flight = simulate_flight(p, v_in, w_in, params, t_max=2.0)
                 normal = np.array([0.0, -side, 0.0])
-                miss_at = np.array([p[0] + rng.choice([-1, 1]) * rng.uniform(0.2, 0.35), p[1],
-                                    max(p[2], LOWEST_HIT_Z) + 0.05])
-                hits[side].append(Hit(t, miss_at, normal, 3.0 * normal, float(p[0])))
+                if not t - last_hit[side] < MIN_STROKE_GAP:  # too soon after their last stroke: no swing
+                    miss_at = np.array([p[0] + rng.choice([-1, 1]) * rng.uniform(0.2, 0.35), p[1],
+                                        max(p[2], LOWEST_HIT_Z) + 0.05])
+                    hits[side].append(Hit(t, miss_at, normal, 3.0 * normal, float(p[0])))
                 rec.shots.append(_shot_row(rally, shot, side, t, p, v_in, v_in, w_in, normal, 3.0 * normal,
-                                           intent, "miss", (np.nan, np.nan), np.full(2, np.nan), None))
+                                           "miss", "miss", (np.nan, np.nan), np.full(2, np.nan), None,
+                                           tactics[side], ctx, timing))
                 rec.flight(t, flight, rally, shot)
                 t += flight.times[-1]
                 break
-            target = _target(rng, side, intent)
-            v_out, w_out, normal, v_paddle = _aim(p, v_in, w_in, target, params, intent)
+            target, speed, w_wanted = executed_shot(ctx, timing, intent, final, execution)
+            target = _fault_target(rng, target[0], side, fault)
+            speed = {"double_bounce": 3.0, "net": 7.0}.get(fault, speed[0])
+            v_out, w_out, normal, v_paddle = _aim(p, v_in, w_in, target, w_wanted[0], speed, params, fault)
             flight = simulate_flight(p, v_out, w_out, params, t_max=3.0,
                                      stop=stop_at_y(_hitting_plane(rng, -side)))
             outcome = _outcome(flight, side)
             strike = _strike_crossing(flight, side)
             target_x = strike[0] if np.isfinite(strike[0]) else float(target[0])
             late = None
-            if rng.random() < LATE_CHANGE_RATE:
-                late = float(np.clip(-target_x + rng.normal(0, 0.2), -0.9, 0.9))
-            hits[side].append(Hit(t, paddle_centre_at_impact(p, normal), normal, v_paddle, target_x, late))
+            if final["late"][0]:  # the body prepared the first intent's direction
+                late = float(target_strike_x(p, intent["target"], STRIKE_Y * side)[0])
+            if outcome == "ok":
+                ratio = float(np.linalg.norm(w_out) / np.linalg.norm(w_wanted[0]))
+                records.append(ShotRecord(rally, shot, t, tactics[side], ctx, timing, intent, final,
+                                          execution, ratio, strike[0]))
+            hits[side].append(Hit(t, paddle_centre_at_impact(p, normal), normal, v_paddle, target_x, late,
+                                  timing.stroke, timing.reveal_s, timing.late_s))
+            last_hit[side] = t
             track[-side][0].append(t + 0.15)
             track[-side][1].append(float(flight.positions[-1, 0]))
             rec.shots.append(_shot_row(rally, shot, side, t, p, v_in, v_out, w_out, normal, v_paddle,
-                                       intent, outcome, strike, target, late))
+                                       fault, outcome, strike, target, late, tactics[side], ctx, timing))
             rec.event(t, "hit", rally, shot, p, "+y" if side > 0 else "-y")
             rec.flight(t, flight, rally, shot)
             t_end = t + flight.times[-1]
@@ -211,19 +284,26 @@ def simulate_rallies(n_rallies: int, rates: FaultRates, rng: np.random.Generator
             t, p = t_end, flight.positions[-1]
             v_in, w_in = flight.velocities[-1], flight.spins[-1]
             side = -side
-    return rec, hits, track, t
+    return rec, hits, track, t, records, tactics
 
 
 def _shot_row(rally, shot, side, t, p, v_in, v_out, w_out, normal, v_paddle, intent, outcome, strike,
-              target, late) -> dict:
+              target, late, tactics: Tactics, ctx: ShotContext, timing: ShotTiming) -> dict:
     row = {"rally": rally, "shot": shot, "hitter": SIDES[side], "side": side,
            "t_hit_ns": int(round(t * 1e9)), "intent": intent, "outcome": outcome,
            "strike_x": strike[0], "strike_z": strike[1], "target_x": target[0], "target_y": target[1],
-           "late_change": late is not None, "prepared_x": np.nan if late is None else late}
+           "late_change": late is not None, "prepared_x": np.nan if late is None else late,
+           "stroke": timing.stroke, "deception": tactics.deception, "pressure": ctx.pressure,
+           "reveal_s": timing.reveal_s, "late_s": timing.late_s}
     for name, vec in (("hit", p), ("v_in", v_in), ("v_out", v_out), ("w_out", w_out),
                       ("paddle_normal", normal), ("paddle_v", v_paddle)):
         row.update({f"{name}_{a}": float(vec[i]) for i, a in enumerate("xyz")})
     return row
+
+
+def session_epoch_ns(session_index: int) -> int:
+    """Camera-clock time (ns) of a session's t = 0: session k starts k hours after SESSION_EPOCH_NS."""
+    return SESSION_EPOCH_NS + session_index * 3_600_000_000_000
 
 
 def _bystander_mask(times: np.ndarray, rate: float, rng) -> np.ndarray:
@@ -241,11 +321,16 @@ def _bystander_mask(times: np.ndarray, rate: float, rng) -> np.ndarray:
 
 
 def simulate_session(n_rallies: int, rates: FaultRates, rng: np.random.Generator, optitrack_hz: float = 240.0,
-                     session_index: int = 0, bystander_rate: float = 0.2) -> SessionTruth:
-    """Ground truth of one session: ball, shots, events, people at 100 Hz, paddles at optitrack_hz."""
-    rec, hits, track, t_end = simulate_rallies(n_rallies, rates, rng)
+                     session_index: int = 0, bystander_rate: float = 0.2,
+                     homoscedastic: bool = False) -> SessionTruth:
+    """Ground truth of one session: ball, shots, events, people at 100 Hz, paddles at optitrack_hz.
+
+    homoscedastic: the control twin (config/twin_homoscedastic.yaml), where when a shot's intent
+    shows and how often it changes late do not depend on anything a model could see.
+    """
+    rec, hits, track, t_end, records, _ = simulate_rallies(n_rallies, rates, rng, homoscedastic)
     t_end += 1.0
-    epoch = SESSION_EPOCH_NS + session_index * 3_600_000_000_000
+    epoch = session_epoch_ns(session_index)
     frames = np.arange(0, int(t_end * 1e9), FRAME_NS, dtype=np.int64)
     opt = np.arange(0, int(t_end * 1e9), int(round(1e9 / optitrack_hz)), dtype=np.int64)
     people, paddles = [], []
@@ -272,7 +357,7 @@ def simulate_session(n_rallies: int, rates: FaultRates, rng: np.random.Generator
     events = pd.DataFrame(rec.events).sort_values("time_ns", kind="stable").reset_index(drop=True)
     events["time_ns"] += epoch
     return SessionTruth(ball, shots, events, pd.concat(people, ignore_index=True),
-                        pd.concat(paddles, ignore_index=True))
+                        pd.concat(paddles, ignore_index=True), records)
 
 
 def _people_frame(time_ns: np.ndarray, person: str, joints: np.ndarray) -> pd.DataFrame:

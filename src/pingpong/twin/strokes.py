@@ -42,6 +42,7 @@ from pingpong.twin.players import (
     rot_x,
     rot_z,
 )
+from pingpong.twin.repertoire import STROKES
 
 # Signal channels of a stroke spline.
 ROOT, TWIST, LEAN, POS, ROT = slice(0, 3), 3, 4, slice(5, 8), slice(8, 11)
@@ -59,6 +60,9 @@ class Hit:
     velocity: np.ndarray  # (3,) paddle-centre velocity at impact, m/s
     target_x: float  # x where the ball will cross the far strike line (y = -side * 1.40 m)
     late_change: float | None = None  # target x the body prepares for before the wrist turns late
+    stroke: str = "drive"  # a key of repertoire.STROKES: its swing length and trunk rotation
+    intent_lead: float | None = None  # s, the target shows from this long before the hit (None: the style's)
+    late_window: float | None = None  # s, a late change turns the wrist in this last stretch (None: style's)
 
 
 @dataclass(frozen=True)
@@ -164,8 +168,12 @@ def _plan_stroke(plan: PlayerPlan, hit: Hit, t_prev: float, t_next: float,
     speed = float(np.linalg.norm(v_act))
     t_start = max(t_hit - style.prep_time, 0.5 * (t_prev + t_hit))
     t_end = min(t_hit + style.recovery_time, 0.5 * (t_hit + t_next))
-    swing = min(style.swing_time * (1 + 0.1 * rng.standard_normal()), 2 * 0.5 * k / max(speed, 1e-6))
-    follow = min(style.follow_time * (1 + 0.1 * rng.standard_normal()), 2 * 0.35 * k / max(speed, 1e-6))
+    kind = STROKES[hit.stroke]
+    # a long stroke (a loop's) shortens when the hits come fast: 0.05 s stays for the ready phases
+    swing = min(style.swing_time * kind.swing_scale * (1 + 0.1 * rng.standard_normal()),
+                2 * 0.5 * k * kind.swing_scale / max(speed, 1e-6), max(t_hit - t_start - 0.05, 0.05))
+    follow = min(style.follow_time * kind.swing_scale * (1 + 0.1 * rng.standard_normal()),
+                 2 * 0.35 * k * kind.swing_scale / max(speed, 1e-6), max(t_end - t_hit - 0.05, 0.05))
     knots = np.array([t_start, t_hit - swing, t_hit, t_hit + follow, t_end])
     if np.any(np.diff(knots) < 0.05):
         raise ValueError(f"hit at t={t_hit:.3f} s: strokes of one player overlap (previous hit "
@@ -186,8 +194,9 @@ def _plan_stroke(plan: PlayerPlan, hit: Hit, t_prev: float, t_next: float,
     turn_back, turn_through = rot_z(np.array(-h * fh * 0.5)), rot_z(np.array(h * fh * 0.6))
     jitter_rot = Rotation.from_rotvec(4 * jitter[2:4]).as_matrix()
     lean_hit = style.lean + 0.1
-    twist_back0, twist_hit0, twist_ft0 = (np.array([-0.75, -0.1, 0.55]) if forehand
-                                          else np.array([0.45, 0.05, -0.3])) * h + twist_jitter
+    twist_back0, twist_hit0, twist_ft0 = ((np.array([-0.75, -0.1, 0.55]) if forehand
+                                           else np.array([0.45, 0.05, -0.3])) * h * kind.twist_scale
+                                          + twist_jitter)
     g = style.intent_gain
 
     alpha_act = _alpha(p, hit.target_x, side, fwd)
@@ -230,9 +239,10 @@ def _plan_stroke(plan: PlayerPlan, hit: Hit, t_prev: float, t_next: float,
         val[1:4, ROT] = q[3 * i:3 * i + 3]
         der[2, ROT] = (val[3, ROT] - val[1, ROT]) / (swing + follow)
     spline = CubicHermiteSpline(knots, np.concatenate(values, 1), np.concatenate(slopes, 1))
-    late = hit.late_change is not None
-    return _StrokePlan(t_hit, t_start, t_end, t_hit - style.intent_lead,
-                       t_hit - style.late_window if late else t_hit - style.intent_lead,
+    lead = style.intent_lead if hit.intent_lead is None else hit.intent_lead
+    window = style.late_window if hit.late_window is None else hit.late_window
+    return _StrokePlan(t_hit, t_start, t_end, t_hit - lead,
+                       t_hit - window if hit.late_change is not None else t_hit - lead,
                        spline, rot_ref, forehand)
 
 

@@ -1,0 +1,142 @@
+"""The twin's oracle: how much of a shot's strike point could be known at each frame before the hit.
+
+A shot's decisions are made at known times (`pingpong.twin.repertoire`): the stroke before any
+predicted frame, the intent `reveal_s` and the late change `late_s` before the hit, the execution
+at the contact. At frame f (f * 10 ms before the hit) the decisions made strictly before that time are
+held and the others re-drawn `n_draws` times from the same distributions; each draw is aimed and flown
+to the far strike line like the shot itself, and the distribution of the strike x is kept. Frames
+between two decision times share one set of draws.
+
+Conditioned on a good shot, as every kept hit is one: draws whose ball does not cross the net, bounce
+once on the far half and reach the strike line are left out (`oracle_n` counts those kept).
+
+Two approximations, both measured by tests/test_twin_oracle.py (the true strike x must fall within
+[q05, q95] about 90 % of the time, and the oracle's flight must reproduce the shot's own):
+- the spin flown is the wanted spin scaled by the ratio the shot's own paddle achieved (the twin
+  solves a paddle per shot, `paddle_for_spin`; 200 solves per draw set would cost minutes);
+- the flight integrates at 2 ms with the bounce placed by linear interpolation in its step
+  (simulate_flight: 1 ms with the event refined), a few millimetres at the strike line.
+"""
+
+import numpy as np
+import pandas as pd
+
+from pingpong.frames import FRAME_NS, N_PRED_FRAMES, STRIKE_Y, TABLE_HALF_LENGTH, TABLE_HALF_WIDTH
+from pingpong.twin.ball import BallParams, _contact, aim_shots, rk4_rows
+from pingpong.twin.repertoire import STROKES, draw_execution, draw_intent, draw_late, spin_vector
+
+N_DRAWS = 200
+ORACLE_COLUMNS = ("rally", "shot", "t_hit_ns", "frames_before_hit", "oracle_mean_x", "oracle_std_x",
+                  "oracle_q05_x", "oracle_q95_x", "oracle_n")
+_FRAME_S = FRAME_NS / 1e9
+
+
+def held(record, frames_before_hit: int) -> tuple[bool, bool]:
+    """(intent held, late change held) at a frame: made strictly before f * 10 ms before the hit."""
+    before = frames_before_hit * _FRAME_S
+    return record.timing.reveal_s > before, record.timing.late_s > before
+
+
+def _tile(draw: dict, n: int) -> dict:
+    return {k: np.repeat(v, n, axis=0) for k, v in draw.items() if isinstance(v, np.ndarray)}
+
+
+def redraw(record, hold_intent: bool, hold_late: bool, rng: np.random.Generator, n: int,
+           ball: BallParams = BallParams()):
+    """n draws of a shot with the held decisions fixed: targets (n, 2), speed hints (n,), spins (n, 3),
+    ball params (n,). The execution (at the contact) is always re-drawn."""
+    from pingpong.twin.session import executed_shot  # session imports this module's users
+
+    tac, timing, ctx = record.tactics, record.timing, record.ctx
+    intent = _tile(record.intent, n) if hold_intent else draw_intent(rng, tac, timing, ctx, n)
+    final = _tile(record.final, n) if hold_late else draw_late(rng, tac, timing, ctx, intent)
+    execution = draw_execution(rng, tac, timing, ctx, n, ball)
+    target, speed, w = executed_shot(ctx, timing, intent, final, execution)
+    return target, speed, w * record.spin_ratio, execution["params"]
+
+
+def _aim(p_hit, target, w, params, speed):
+    """Outgoing velocities (n, 3), NaN where no speed hint clears the net (the twin's _aim_slower)."""
+    v = np.full((len(target), 3), np.nan)
+    for factor in (1.0, 0.6, 0.35):
+        todo = np.flatnonzero(np.isnan(v[:, 0]))
+        if len(todo) == 0:
+            break
+        v[todo] = aim_shots(np.tile(p_hit, (len(todo), 1)), target[todo], w[todo],
+                            [params[i] for i in todo], speed_hint=speed[todo] * factor, strict=False)[0]
+    return v
+
+
+def strike_x_batch(p_hit, v_out, w, params, side: int, dt: float = 0.002, t_max: float = 2.0) -> np.ndarray:
+    """x (n,) where each ball crosses the far strike line y = side * STRIKE_Y after exactly one bounce
+    on the far half; NaN for balls that do not (no bounce there, a second bounce, the floor)."""
+    n = len(v_out)
+    kd, km, ks = (np.array([getattr(q, a) for q in params])
+                  for a in ("k_drag", "k_magnus", "magnus_saturation"))
+    e = np.array([q.table_restitution for q in params])[:, None]
+    mu = np.array([q.table_friction for q in params])[:, None]
+    r = params[0].radius
+    p, v, w = np.tile(p_hit, (n, 1)).T, v_out.T.copy(), w.T.copy()
+    bounced, active = np.zeros(n, bool), np.isfinite(v[0])
+    x = np.full(n, np.nan)
+    for _ in range(int(t_max / dt)):
+        p1, v1 = rk4_rows(p, v, w, kd, km, ks, dt)
+        down = active & (p[2] > r) & (p1[2] <= r)
+        if down.any():
+            f = (p[2] - r) / (p[2] - p1[2])
+            at = p + f * (p1 - p)
+            y_own = side * at[1]  # the hitter's own frame: the far half is -1.37 <= y_own < 0
+            on_far = (down & (np.abs(at[0]) <= TABLE_HALF_WIDTH) & (y_own < 0)
+                      & (y_own >= -TABLE_HALF_LENGTH))
+            active &= ~(down & (bounced | ~on_far))  # a second bounce, or one off the far half
+            hit = on_far & active
+            if hit.any():
+                vb, wb = _contact((v + f * (v1 - v))[:, hit].T, w[:, hit].T, np.array([0.0, 0.0, 1.0]),
+                                  e[hit], mu[hit], r)
+                p1[:, hit], v1[:, hit], w[:, hit] = at[:, hit], vb.T, wb.T
+                p1[2, hit] = r
+                bounced |= hit
+        y0, y1 = side * p[1], side * p1[1]
+        cross = active & (y0 > STRIKE_Y) & (y1 <= STRIKE_Y)
+        f = (y0 - STRIKE_Y) / np.where(cross, y0 - y1, 1.0)
+        x = np.where(cross & bounced, p[0] + f * (p1[0] - p[0]), x)
+        active &= ~cross & (p1[2] > -0.76)
+        p, v = p1, v1
+        if not active.any():
+            break
+    return x
+
+
+def shot_oracle(record, rng: np.random.Generator, n_draws: int = N_DRAWS,
+                ball: BallParams = BallParams()) -> list:
+    """Rows (dicts of ORACLE_COLUMNS but t_hit_ns) for frames 0..N_PRED_FRAMES of one good shot."""
+    rows, cache = [], {}
+    for f in range(N_PRED_FRAMES + 1):
+        key = held(record, f)
+        if key not in cache:
+            target, speed, w, params = redraw(record, *key, rng, n_draws, ball)
+            v = _aim(record.ctx.p_hit, target, w, params, speed)
+            xs = strike_x_batch(record.ctx.p_hit, v, w, params, record.ctx.side)
+            cache[key] = xs[np.isfinite(xs)]
+        xs = cache[key]
+        q05, q95 = np.quantile(xs, [0.05, 0.95]) if len(xs) else (np.nan, np.nan)
+        rows.append({"rally": record.rally, "shot": record.shot, "frames_before_hit": f,
+                     "oracle_mean_x": float(np.mean(xs)) if len(xs) else np.nan,
+                     "oracle_std_x": float(np.std(xs, ddof=1)) if len(xs) > 1 else np.nan,
+                     "oracle_q05_x": float(q05), "oracle_q95_x": float(q95), "oracle_n": len(xs)})
+    return rows
+
+
+def session_oracle(records, rng: np.random.Generator, epoch_ns: int, n_draws: int = N_DRAWS) -> pd.DataFrame:
+    """The oracle table of a session's good shots (ShotRecord), t_hit_ns on the session's clock."""
+    rows = []
+    for rec in records:
+        t_hit_ns = int(round(rec.t_hit * 1e9)) + epoch_ns
+        rows += [{**row, "t_hit_ns": t_hit_ns} for row in shot_oracle(rec, rng, n_draws)]
+    out = pd.DataFrame(rows, columns=list(ORACLE_COLUMNS))
+    return out.astype({"rally": np.int32, "shot": np.int32, "t_hit_ns": np.int64,
+                       "frames_before_hit": np.int32, "oracle_n": np.int32})
+
+
+__all__ = ["N_DRAWS", "ORACLE_COLUMNS", "STROKES", "held", "redraw", "session_oracle", "shot_oracle",
+           "spin_vector", "strike_x_batch"]
