@@ -239,7 +239,7 @@ def test_late_change_shows_in_the_last_frames(anticipation):
 
 def test_strokes_of_one_player_too_close_are_refused():
     rng = np.random.default_rng(0)
-    hits = [Hit(t, *shot(rng, 1, 0.0), 0.0) for t in (1.0, 1.3)]
+    hits = [Hit(t, *shot(rng, 1, 0.0), 0.0) for t in (1.0, 1.15)]
     with pytest.raises(ValueError, match="overlap"):
         plan_player(1, hits, sample_player_style(rng), rng)
 

@@ -187,10 +187,12 @@ def test_the_stage_writes_both_tables_and_the_figure(tmp_path):
         dataset, pred = _hits(oracle, session, rng.integers(-FRAME_NS, FRAME_NS, 12), hitters)
         datasets.append(dataset.iloc[:11])  # the last shot has no kept hit
         preds.append(pred[pred["rally"] != dataset["rally"].iloc[11]])
+        oracle = oracle.assign(oracle_n=200)
         for name, table, schema in (("shots", shots, truth.SHOTS), ("oracle", oracle, truth.ORACLE)):
             path = tmp_path / f"{session}_{name}.parquet"
             if name == "shots":  # the columns the report does not read
-                table = table.assign(hitter="near", intent="rally", outcome="ok", strike_x=0.0, strike_z=0.0)
+                table = table.assign(hitter="near", intent="rally", outcome="ok", strike_x=0.0, strike_z=0.0,
+                                     reveal_s=0.2, late_s=0.1)
             write_table(table, path, schema, prov)
             inputs[name].append(str(path))
     dataset = pd.concat(datasets, ignore_index=True)

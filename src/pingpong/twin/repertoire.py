@@ -143,8 +143,8 @@ def sample_tactics(rng: np.random.Generator, homoscedastic: bool = False) -> Tac
 def stroke_weights(tactics: Tactics, ctx: ShotContext) -> np.ndarray:
     """The player's mix reshaped by the incoming ball, normalised."""
     w = dict(zip(STROKE_NAMES, tactics.mix, strict=True))
-    if ctx.serve:  # a serve is a drive, a push or a sidespin serve
-        w = {k: (v if k in ("drive", "push", "sidespin") else 0.0) for k, v in w.items()}
+    if ctx.serve:  # a serve carries backspin or sidespin
+        w = {k: (v if k in ("push", "sidespin") else 0.0) for k, v in w.items()}
     else:
         p = ctx.pressure
         if ctx.backspin_in:

@@ -169,15 +169,17 @@ def _plan_stroke(plan: PlayerPlan, hit: Hit, t_prev: float, t_next: float,
     t_start = max(t_hit - style.prep_time, 0.5 * (t_prev + t_hit))
     t_end = min(t_hit + style.recovery_time, 0.5 * (t_hit + t_next))
     kind = STROKES[hit.stroke]
-    # a long stroke (a loop's) shortens when the hits come fast: 0.05 s stays for the ready phases
-    swing = min(style.swing_time * kind.swing_scale * (1 + 0.1 * rng.standard_normal()),
-                2 * 0.5 * k * kind.swing_scale / max(speed, 1e-6), max(t_hit - t_start - 0.05, 0.05))
-    follow = min(style.follow_time * kind.swing_scale * (1 + 0.1 * rng.standard_normal()),
-                 2 * 0.35 * k * kind.swing_scale / max(speed, 1e-6), max(t_end - t_hit - 0.05, 0.05))
+    # The swing covers at most ~0.5 m (k-scaled) at the paddle's speed, but lasts >= 60 ms however fast the
+    # paddle brushes; a long stroke (a loop's) shortens when the hits come fast, 50 ms staying for the
+    # ready phases.
+    swing = min(max(min(style.swing_time * kind.swing_scale * (1 + 0.1 * rng.standard_normal()),
+                        2 * 0.5 * k * kind.swing_scale / max(speed, 1e-6)), 0.06), t_hit - t_start - 0.05)
+    follow = min(max(min(style.follow_time * kind.swing_scale * (1 + 0.1 * rng.standard_normal()),
+                         2 * 0.35 * k * kind.swing_scale / max(speed, 1e-6)), 0.06), t_end - t_hit - 0.05)
     knots = np.array([t_start, t_hit - swing, t_hit, t_hit + follow, t_end])
     if np.any(np.diff(knots) < 0.05):
         raise ValueError(f"hit at t={t_hit:.3f} s: strokes of one player overlap (previous hit "
-                         f"{t_prev:.3f} s, next {t_next:.3f} s); keep them >= 0.6 s apart")
+                         f"{t_prev:.3f} s, next {t_next:.3f} s); keep them >= 0.25 s apart")
     ready_val, ready_der = _ready(plan, knots[[0, 2, 4]])
     lateral = h * (p - ready_val[1, ROOT]) @ right
     forehand = bool(lateral > style.forehand_threshold)
@@ -287,7 +289,7 @@ def plan_player(side: int, hits: Sequence[Hit], style: PlayerStyle, rng: np.rand
     """Plan one player's motion over a rally: ready position, lateral tracking, one stroke per hit.
 
     side: +1 / -1, the end of the table (y > 0 / y < 0) the player stands at. hits: this player's hits,
-    any order, >= 0.6 s apart. track_times/track_x: at track_times[i] (s) the player starts moving
+    any order, >= 0.25 s apart. track_times/track_x: at track_times[i] (s) the player starts moving
     towards the ball's expected lateral position track_x[i] (m; e.g. where the ball will cross this end
     line, known from the opponent's hit); the player follows a style-dependent fraction of it.
     """
