@@ -23,7 +23,7 @@ import pandas as pd
 
 from pingpong.frames import FRAME_NS, N_PRED_FRAMES, STRIKE_Y, TABLE_HALF_LENGTH, TABLE_HALF_WIDTH
 from pingpong.twin.ball import BallParams, _contact, aim_shots, rk4_rows
-from pingpong.twin.repertoire import STROKES, draw_execution, draw_intent, draw_late, spin_vector
+from pingpong.twin.repertoire import draw_execution, draw_intent, draw_late, executed_shot
 
 N_DRAWS = 200
 ORACLE_COLUMNS = ("rally", "shot", "t_hit_ns", "frames_before_hit", "oracle_mean_x", "oracle_std_x",
@@ -41,17 +41,21 @@ def _tile(draw: dict, n: int) -> dict:
     return {k: np.repeat(v, n, axis=0) for k, v in draw.items() if isinstance(v, np.ndarray)}
 
 
-def redraw(record, hold_intent: bool, hold_late: bool, rng: np.random.Generator, n: int,
-           ball: BallParams = BallParams()):
-    """n draws of a shot with the held decisions fixed: targets (n, 2), speed hints (n,), spins (n, 3),
-    ball params (n,). The execution (at the contact) is always re-drawn."""
-    from pingpong.twin.session import executed_shot  # session imports this module's users
-
+def redraw_decisions(record, hold_intent: bool, hold_late: bool, rng: np.random.Generator, n: int,
+                     ball: BallParams = BallParams()) -> tuple[dict, dict, dict]:
+    """n draws of a shot's intent, late change and execution, the held ones the shot's own; the
+    execution (at the contact) is always re-drawn."""
     tac, timing, ctx = record.tactics, record.timing, record.ctx
     intent = _tile(record.intent, n) if hold_intent else draw_intent(rng, tac, timing, ctx, n)
     final = _tile(record.final, n) if hold_late else draw_late(rng, tac, timing, ctx, intent)
-    execution = draw_execution(rng, tac, timing, ctx, n, ball)
-    target, speed, w = executed_shot(ctx, timing, intent, final, execution)
+    return intent, final, draw_execution(rng, tac, timing, ctx, n, ball)
+
+
+def redraw(record, hold_intent: bool, hold_late: bool, rng: np.random.Generator, n: int,
+           ball: BallParams = BallParams()):
+    """n re-drawn shots (redraw_decisions): targets (n, 2), speed hints (n,), spins (n, 3), ball params."""
+    intent, final, execution = redraw_decisions(record, hold_intent, hold_late, rng, n, ball)
+    target, speed, w = executed_shot(record.ctx, record.timing, intent, final, execution)
     return target, speed, w * record.spin_ratio, execution["params"]
 
 
@@ -138,5 +142,3 @@ def session_oracle(records, rng: np.random.Generator, epoch_ns: int, n_draws: in
                        "frames_before_hit": np.int32, "oracle_n": np.int32})
 
 
-__all__ = ["N_DRAWS", "ORACLE_COLUMNS", "STROKES", "held", "redraw", "session_oracle", "shot_oracle",
-           "spin_vector", "strike_x_batch"]

@@ -81,7 +81,7 @@ DECEPTION = {  # reveal time scale, late-change rate
 }
 DECEPTION_WEIGHTS = (0.3, 0.4, 0.3)
 HOMOSCEDASTIC_LATE_RATE = 0.15  # the control twin's (and the earlier twin's) share of late changes
-SMASH_HEIGHT = 0.28  # m above the table at the hitting plane: higher balls invite a smash
+SMASH_HEIGHT = 0.27  # m above the table at the hitting plane: higher balls invite a smash
 
 
 @dataclass(frozen=True)
@@ -155,7 +155,9 @@ def stroke_weights(tactics: Tactics, ctx: ShotContext) -> np.ndarray:
         else:
             w["push"] *= 0.7
         w["block"] *= 1 + 4 * p
-        w["loop"] *= 1 - 0.6 * p
+        z = ctx.p_hit[2]  # a high ball is driven flat and fast, a low one looped up
+        w["drive"] *= float(np.clip((z - 0.10) / 0.12, 0.1, 2.5))
+        w["loop"] *= float(np.clip((0.34 - z) / 0.12, 0.2, 1.5)) * (1 - 0.6 * p)
         w["sidespin"] *= 1 - 0.6 * p
         if ctx.p_hit[2] > SMASH_HEIGHT:
             w["smash"] = 3.0 * sum(w.values())
@@ -236,6 +238,17 @@ def draw_execution(rng: np.random.Generator, tactics: Tactics, timing: ShotTimin
             "speed_factor": np.clip(1 + rel * rng.standard_normal(n), 0.7, 1.3),
             "spin_factor": np.clip(1 + 2 * rel * rng.standard_normal(n), 0.4, 1.6),
             "params": [sample_ball_params(rng, base=ball) for _ in range(n)]}
+
+
+def executed_shot(ctx: ShotContext, timing: ShotTiming, intent: dict, final: dict, execution: dict):
+    """Bounce targets (n, 2), speed hints (n,) and wanted spins (n, 3) of decided shots."""
+    target = final["target"] + execution["target_error"]
+    # an error towards the net leaves the ball at least 10 cm past it (nearer, no shot clears the net)
+    target[:, 1] = -ctx.side * np.maximum(-ctx.side * target[:, 1], 0.10)
+    speed = intent["speed"] * execution["speed_factor"]
+    w = spin_vector(target, ctx.p_hit, intent["spin"] * execution["spin_factor"], intent["tilt"],
+                    STROKES[timing.stroke].backspin)
+    return target, speed, w
 
 
 def spin_vector(target: np.ndarray, p_hit: np.ndarray, spin: np.ndarray, tilt: np.ndarray,

@@ -17,6 +17,7 @@ import pandas as pd
 from pingpong.frames import FRAME_NS, ROT_COLUMNS, STRIKE_Y, TABLE_HALF_LENGTH
 from pingpong.twin.ball import (
     BallParams,
+    Event,
     Flight,
     aim_shots,
     paddle_for_spin,
@@ -26,7 +27,6 @@ from pingpong.twin.ball import (
 )
 from pingpong.twin.players import bystander_joints, sample_player_style
 from pingpong.twin.repertoire import (
-    STROKES,
     ShotContext,
     ShotTiming,
     Tactics,
@@ -34,8 +34,8 @@ from pingpong.twin.repertoire import (
     draw_execution,
     draw_intent,
     draw_late,
+    executed_shot,
     sample_tactics,
-    spin_vector,
     target_strike_x,
 )
 from pingpong.twin.strokes import Hit, evaluate_player, paddle_centre_at_impact, plan_player
@@ -158,6 +158,24 @@ class _Recorder:
                             "side": side, "x": position[0], "y": position[1], "z": position[2]})
 
 
+def _meet_at_top(flight: Flight, receiver: int) -> Flight:
+    """The flight up to where the receiver meets it: the top of its bounce, between 2 cm behind the strike
+    line and where the flight was stopped (players take the ball near its peak, the fastest and flattest
+    ball they can hit from there). A flight that ended otherwise (net, floor, no bounce) is left whole."""
+    if not flight.events or flight.events[-1].kind != "stop":
+        return flight
+    bounces = [e.time for e in flight.events if e.kind == "bounce"]
+    y = flight.positions[:, 1] * receiver
+    band = (flight.times > (bounces[-1] if bounces else np.inf)) & (y >= -STRIKE_Y + 0.02)
+    if not band.any():
+        return flight
+    k = int(np.flatnonzero(band)[np.argmax(flight.positions[band, 2])])
+    events = [e for e in flight.events if e.time < flight.times[k]]
+    events.append(Event("stop", float(flight.times[k]), flight.positions[k], flight.events[-1].side))
+    cut = slice(0, k + 1)
+    return Flight(flight.times[cut], flight.positions[cut], flight.velocities[cut], flight.spins[cut], events)
+
+
 def _dead_ball(flight: Flight, outcome: str, params: BallParams) -> Flight | None:
     """The flight of a ball after the rally ended, to the floor (None if it is already there)."""
     last = flight.events[-1].kind if flight.events else ""
@@ -201,17 +219,6 @@ def _decide(rng, tactics: Tactics, ctx: ShotContext, ball: BallParams):
     return timing, intent, final, execution
 
 
-def executed_shot(ctx: ShotContext, timing: ShotTiming, intent: dict, final: dict, execution: dict):
-    """Bounce targets (n, 2), speed hints (n,) and wanted spins (n, 3) of decided shots."""
-    target = final["target"] + execution["target_error"]
-    # an error towards the net leaves the ball at least 10 cm past it (nearer, no shot clears the net)
-    target[:, 1] = -ctx.side * np.maximum(-ctx.side * target[:, 1], 0.10)
-    speed = intent["speed"] * execution["speed_factor"]
-    w = spin_vector(target, ctx.p_hit, intent["spin"] * execution["spin_factor"], intent["tilt"],
-                    STROKES[timing.stroke].backspin)
-    return target, speed, w
-
-
 def simulate_rallies(n_rallies: int, rates: FaultRates, rng: np.random.Generator, homoscedastic: bool = False,
                      ball: BallParams = BallParams()):
     """Ball flights of all rallies: the recorder, each player's hits and tracking cues, the end time (s),
@@ -252,8 +259,9 @@ def simulate_rallies(n_rallies: int, rates: FaultRates, rng: np.random.Generator
             target = _fault_target(rng, target[0], side, fault)
             speed = {"double_bounce": 3.0, "net": 7.0}.get(fault, speed[0])
             v_out, w_out, normal, v_paddle = _aim(p, v_in, w_in, target, w_wanted[0], speed, params, fault)
-            flight = simulate_flight(p, v_out, w_out, params, t_max=3.0,
-                                     stop=stop_at_y(_hitting_plane(rng, -side)))
+            back = rng.uniform(0.15, 0.5)  # how far behind the end line the receiver can take the ball
+            flight = _meet_at_top(simulate_flight(p, v_out, w_out, params, t_max=3.0,
+                                                  stop=stop_at_y(-side * (TABLE_HALF_LENGTH + back))), -side)
             outcome = _outcome(flight, side)
             strike = _strike_crossing(flight, side)
             target_x = strike[0] if np.isfinite(strike[0]) else float(target[0])
