@@ -353,7 +353,9 @@ def accel_rows(v, w, kd, km, ks):
     drag = kd * np.sqrt(s2)
     cx, cy, cz = wy * vz - wz * vy, wz * vx - wx * vz, wx * vy - wy * vx
     lift = km / (1 + ks * np.sqrt(cx * cx + cy * cy + cz * cz) / np.maximum(s2, 1e-300))
-    return np.stack([-drag * vx + lift * cx, -drag * vy + lift * cy, -GRAVITY - drag * vz + lift * cz])
+    out = np.empty_like(v)  # filled row by row: np.stack costs a quarter of the call
+    out[0], out[1], out[2] = -drag * vx + lift * cx, -drag * vy + lift * cy, -GRAVITY - drag * vz + lift * cz
+    return out
 
 
 def rk4_rows(p, v, w, kd, km, ks, h):

@@ -14,8 +14,8 @@ Two approximations, both measured by tests/test_twin_oracle.py (the true strike 
 [q05, q95] about 90 % of the time, and the oracle's flight must reproduce the shot's own):
 - the spin flown is the wanted spin scaled by the ratio the shot's own paddle achieved (the twin
   solves a paddle per shot, `paddle_for_spin`; 200 solves per draw set would cost minutes);
-- the flight integrates at 2 ms with the bounce placed by linear interpolation in its step
-  (simulate_flight: 1 ms with the event refined), a few millimetres at the strike line.
+- the flight integrates at 4 ms with the bounce placed by linear interpolation in its step
+  (simulate_flight: 1 ms with the event refined), within 5 mm at the strike line (tested).
 """
 
 import numpy as np
@@ -53,25 +53,43 @@ def redraw_decisions(record, hold_intent: bool, hold_late: bool, rng: np.random.
 
 def redraw(record, hold_intent: bool, hold_late: bool, rng: np.random.Generator, n: int,
            ball: BallParams = BallParams()):
-    """n re-drawn shots (redraw_decisions): targets (n, 2), speed hints (n,), spins (n, 3), ball params."""
+    """n re-drawn shots (redraw_decisions): targets (n, 2), speed hints (n,), wanted spins (n, 3), params."""
     intent, final, execution = redraw_decisions(record, hold_intent, hold_late, rng, n, ball)
     target, speed, w = executed_shot(record.ctx, record.timing, intent, final, execution)
-    return target, speed, w * record.spin_ratio, execution["params"]
+    return target, speed, w, execution["params"]
 
 
-def _aim(p_hit, target, w, params, speed):
-    """Outgoing velocities (n, 3), NaN where no speed hint clears the net (the twin's _aim_slower)."""
-    v = np.full((len(target), 3), np.nan)
+def paddle_spin(w_wanted, v_out, ctx, ratio: float) -> np.ndarray:
+    """The spin (n, 3) a brushing paddle gives, approximated: friction acts in the face, so the wanted
+    spin across the face normal is given (scaled by the ratio the shot's own paddle achieved) and the
+    incoming spin about the normal stays. The normal is taken along v_out - v_in (the frictionless
+    paddle's, paddle_for_outgoing's start)."""
+    n = v_out - ctx.v_in
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+
+    def along(w):
+        return np.sum(w * n, axis=1, keepdims=True) * n
+
+    return ratio * (w_wanted - along(w_wanted)) + along(np.broadcast_to(ctx.w_in, w_wanted.shape))
+
+
+def _aim(p_hit, target, w, params, speed, flight_time=None):
+    """Outgoing velocities (n, 3), NaN where no speed hint clears the net (the twin's _aim_slower), and
+    their flight times (n,); a given flight_time (n,) starts the aim from there instead."""
+    v, T = np.full((len(target), 3), np.nan), np.full(len(target), np.nan)
     for factor in (1.0, 0.6, 0.35):
         todo = np.flatnonzero(np.isnan(v[:, 0]))
         if len(todo) == 0:
             break
-        v[todo] = aim_shots(np.tile(p_hit, (len(todo), 1)), target[todo], w[todo],
-                            [params[i] for i in todo], speed_hint=speed[todo] * factor, strict=False)[0]
-    return v
+        start = None if flight_time is None else flight_time[todo]
+        v[todo], T[todo] = aim_shots(np.tile(p_hit, (len(todo), 1)), target[todo], w[todo],
+                                     [params[i] for i in todo], flight_time=start,
+                                     speed_hint=speed[todo] * factor, strict=False)
+        flight_time = None  # what the given times could not clear falls back to the speed hints
+    return v, T
 
 
-def strike_x_batch(p_hit, v_out, w, params, side: int, dt: float = 0.002, t_max: float = 2.0) -> np.ndarray:
+def strike_x_batch(p_hit, v_out, w, params, side: int, dt: float = 0.004, t_max: float = 1.5) -> np.ndarray:
     """x (n,) where each ball crosses the far strike line y = side * STRIKE_Y after exactly one bounce
     on the far half; NaN for balls that do not (no bounce there, a second bounce, the floor)."""
     n = len(v_out)
@@ -111,6 +129,18 @@ def strike_x_batch(p_hit, v_out, w, params, side: int, dt: float = 0.002, t_max:
     return x
 
 
+def oracle_flights(record, target, speed, w_wanted, params) -> np.ndarray:
+    """Strike x (n,) of shots aimed like the twin's: aimed with the wanted spin, the paddle's spin
+    (paddle_spin) estimated from that aim, re-aimed with it and flown (NaN: not a good shot)."""
+    ctx = record.ctx
+    w = w_wanted * record.spin_ratio
+    v, T = _aim(ctx.p_hit, target, w, params, speed)
+    ok = np.isfinite(v[:, 0])
+    w[ok] = paddle_spin(w_wanted[ok], v[ok], ctx, record.spin_ratio)
+    v, _ = _aim(ctx.p_hit, target, w, params, speed, np.where(ok, T, np.nan))
+    return strike_x_batch(ctx.p_hit, v, w, params, ctx.side)
+
+
 def shot_oracle(record, rng: np.random.Generator, n_draws: int = N_DRAWS,
                 ball: BallParams = BallParams()) -> list:
     """Rows (dicts of ORACLE_COLUMNS but t_hit_ns) for frames 0..N_PRED_FRAMES of one good shot."""
@@ -118,9 +148,8 @@ def shot_oracle(record, rng: np.random.Generator, n_draws: int = N_DRAWS,
     for f in range(N_PRED_FRAMES + 1):
         key = held(record, f)
         if key not in cache:
-            target, speed, w, params = redraw(record, *key, rng, n_draws, ball)
-            v = _aim(record.ctx.p_hit, target, w, params, speed)
-            xs = strike_x_batch(record.ctx.p_hit, v, w, params, record.ctx.side)
+            target, speed, w_wanted, params = redraw(record, *key, rng, n_draws, ball)
+            xs = oracle_flights(record, target, speed, w_wanted, params)
             cache[key] = xs[np.isfinite(xs)]
         xs = cache[key]
         q05, q95 = np.quantile(xs, [0.05, 0.95]) if len(xs) else (np.nan, np.nan)

@@ -206,7 +206,7 @@ class ShotRecord:
     intent: dict  # draw_intent's, one draw
     final: dict  # draw_late's on it
     execution: dict  # draw_execution's, one draw
-    spin_ratio: float  # |spin the paddle gave| / |spin wanted|
+    spin_ratio: float  # |spin the paddle gave| / |spin wanted|, both across the paddle's normal
     strike_x: float  # m, where the flight crossed the far strike line
 
 
@@ -269,7 +269,8 @@ def simulate_rallies(n_rallies: int, rates: FaultRates, rng: np.random.Generator
             if final["late"][0]:  # the body prepared the first intent's direction
                 late = float(target_strike_x(p, intent["target"], STRIKE_Y * side)[0])
             if outcome == "ok":
-                ratio = float(np.linalg.norm(w_out) / np.linalg.norm(w_wanted[0]))
+                across = np.eye(3) - np.outer(normal, normal)  # the spin the paddle's friction gives
+                ratio = float(np.linalg.norm(across @ w_out) / np.linalg.norm(across @ w_wanted[0]))
                 records.append(ShotRecord(rally, shot, t, tactics[side], ctx, timing, intent, final,
                                           execution, ratio, strike[0]))
             hits[side].append(Hit(t, paddle_centre_at_impact(p, normal), normal, v_paddle, target_x, late,
