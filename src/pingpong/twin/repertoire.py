@@ -75,7 +75,7 @@ STROKE_NAMES = tuple(STROKES)
 BASE_MIX = {"drive": 0.24, "loop": 0.20, "sidespin": 0.16, "push": 0.26, "flick": 0.06, "block": 0.08,
             "smash": 0.0}
 DECEPTION = {  # reveal time scale, late-change rate
-    "telegraph": (1.3, 0.03),
+    "telegraph": (1.3, 0.01),
     "neutral": (1.0, 0.10),
     "disguise": (0.65, 0.30),
 }
@@ -136,7 +136,7 @@ def sample_tactics(rng: np.random.Generator, homoscedastic: bool = False) -> Tac
     mix = rng.dirichlet(40 * base + 1e-9 * (base == 0))
     lanes = rng.dirichlet(60 * LANE_WEIGHTS)
     deception = str(rng.choice(list(DECEPTION), p=DECEPTION_WEIGHTS))
-    return Tactics(mix, lanes, deception, float(rng.uniform(0.025, 0.06)), float(rng.uniform(0.02, 0.05)),
+    return Tactics(mix, lanes, deception, float(rng.uniform(0.02, 0.05)), float(rng.uniform(0.02, 0.05)),
                    homoscedastic, float(rng.uniform(0.20, 0.40)), float(rng.uniform(0.10, 0.15)))
 
 
