@@ -26,7 +26,8 @@ RULES = {"twin_rig", "twin_simulate", "twin_optitrack"}
 EXPECTED = {
     "raw/twin_truth/rig.json",
     "raw/sessions/s00/optitrack.mcap",
-    *(f"raw/twin_truth/s00/{t}.parquet" for t in ("ball", "shots", "events", "people", "paddles")),
+    *(f"raw/twin_truth/s00/{t}.parquet"
+      for t in ("ball", "shots", "events", "people", "paddles", "strike_oracle")),
 }
 SUBMITTED = re.compile(r"Job \d+ has been submitted with SLURM jobid (\d+) \(log: (\S+)\)\.")
 

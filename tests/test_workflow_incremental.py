@@ -8,7 +8,8 @@ from workflow_util import changed, copy_checkout, mtimes, snakemake, write_confi
 
 TINY = {"twin": {"n_sessions": 1, "rallies_per_session": 2, "n_cameras": 2, "width": 160, "height": 120}}
 TARGETS = ["raw/twin_truth/rig.json", "reports/tables/twin_vs_real.md"]
-SIMULATE = {f"raw/twin_truth/s00/{t}.parquet" for t in ("ball", "shots", "events", "people", "paddles")}
+SIMULATE = {f"raw/twin_truth/s00/{t}.parquet"
+            for t in ("ball", "shots", "events", "people", "paddles", "strike_oracle")}
 REPORT = {"reports/tables/twin_vs_real.md", "reports/tables/twin_vs_real.csv"}
 
 
