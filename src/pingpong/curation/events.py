@@ -74,8 +74,9 @@ def detect_bounces(times, ball, table_z: float = 0.0, radius: float = BALL_RADIU
 
     A bounce is a sample whose ball-centre height above the contact height (table_z + radius) is the
     lowest within +-span s, at most height_tol m (the frame nearest the contact can be ~|v_z| / 200 Hz
-    above it), with z's slope over span s before below -min_speed and after above +min_speed (m/s), over
-    table_extent (x_min, x_max, y_min, y_max; None skips the check). index: that sample; time: the
+    above it), with z's slope over span s before below -min_speed and after above +min_speed (m/s), its
+    contact over table_extent (x_min, x_max, y_min, y_max; None skips the check). index: that sample;
+    time: the
     contact, where gravity parabolas fitted to z over fit_window s either side meet (sample time if
     subframe is False); x, y, z: the ball centre there; side: '+y' or '-y', the table half by y's sign.
     """
@@ -83,7 +84,7 @@ def detect_bounces(times, ball, table_z: float = 0.0, radius: float = BALL_RADIU
     h = p[:, 2] - table_z - radius
     rows = []
     for i in range(1, len(t) - 1):
-        if h[i] > height_tol or h[i] > h[i - 1] or h[i] > h[i + 1] or not _over_table(p[i, :2], table_extent):
+        if h[i] > height_tol or h[i] > h[i - 1] or h[i] > h[i + 1]:
             continue
         if not _window_extreme(t, h, i, span, 1.0):
             continue
@@ -92,6 +93,8 @@ def detect_bounces(times, ball, table_z: float = 0.0, radius: float = BALL_RADIU
             continue
         t_contact = _meeting_time(t, p[:, 2], i, fit_window, -GRAVITY) if subframe else float(t[i])
         x, y = (float(np.interp(t_contact, t, p[:, k])) for k in (0, 1))
+        if not _over_table((x, y), table_extent):  # the contact, not the nearest frame (5 cm off at 5 m/s)
+            continue
         z = _contact_height(t, p[:, 2], i, t_contact, fit_window)
         rows.append({"index": int(index[i]), "time": t_contact, "x": x, "y": y, "z": z,
                      "side": "+y" if y >= 0 else "-y"})
