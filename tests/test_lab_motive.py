@@ -46,5 +46,13 @@ def test_paddles_from_a_motive_csv_equal_those_from_the_stream(tiny_run, tmp_pat
     pd.testing.assert_series_equal(ours["valid"], stream["valid"])  # the same gaps
     both = (ours["valid"] & stream["valid"]).to_numpy()
     numbers = ours.columns.drop(["time_ns", "player", "valid"])
-    # the CSV holds quaternions to 6 decimals and times to the microsecond: 1e-5 of a rotation entry
-    np.testing.assert_allclose(ours[numbers][both], stream[numbers][both], atol=2e-5)
+    position = [c for c in numbers if c in ("px", "py", "pz")]
+    # the CSV holds quaternions to 6 decimals and times to the microsecond: 1e-5 of a rotation entry, and a
+    # position off by the paddle's speed times 1 us. The speed is the stream's fastest frame-to-frame motion
+    # (92.8 m/s on the tiny run of 2026-12-02, jumps across tracking gaps included: an upper bound)
+    rotation = numbers.drop(position)
+    np.testing.assert_allclose(ours[rotation][both], stream[rotation][both], atol=2e-5)
+    speed = max(np.nanmax(np.linalg.norm(np.diff(g[position].to_numpy(), axis=0), axis=1)
+                          / (np.diff(g["time_ns"].to_numpy()) / 1e9)) for _, g in stream.groupby("player"))
+    assert np.isfinite(speed)
+    np.testing.assert_allclose(ours[position][both], stream[position][both], atol=2e-5 + 1e-6 * speed)
