@@ -58,6 +58,7 @@ from pingpong.frames import (
     TABLE_HALF_WIDTH,
 )
 
+SLOWER_AIMS = (1.0, 0.6, 0.35)  # speed-hint factors a shot tries in turn when the net is in the way
 FLOOR_Z = -0.76  # floor height in the table frame (regulation table height), m
 ROLLING_ALPHA = 0.4  # 2/5: the slip vanishes at this friction ratio for a hollow sphere
 MIN_BOUNCE_VZ = 0.05  # below this rebound speed (m/s) the ball is at rest on the table

@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 
 from pingpong.frames import FRAME_NS, N_PRED_FRAMES, STRIKE_Y, TABLE_HALF_LENGTH, TABLE_HALF_WIDTH
-from pingpong.twin.ball import BallParams, _contact, aim_shots, rk4_rows
+from pingpong.twin.ball import SLOWER_AIMS, BallParams, _contact, aim_shots, rk4_rows
 from pingpong.twin.repertoire import draw_execution, draw_intent, draw_late, executed_shot
 
 N_DRAWS = 200
@@ -77,7 +77,7 @@ def _aim(p_hit, target, w, params, speed, flight_time=None):
     """Outgoing velocities (n, 3), NaN where no speed hint clears the net (the twin's _aim_slower), and
     their flight times (n,); a given flight_time (n,) starts the aim from there instead."""
     v, T = np.full((len(target), 3), np.nan), np.full(len(target), np.nan)
-    for factor in (1.0, 0.6, 0.35):
+    for factor in SLOWER_AIMS:
         todo = np.flatnonzero(np.isnan(v[:, 0]))
         if len(todo) == 0:
             break

@@ -16,6 +16,7 @@ import pandas as pd
 
 from pingpong.frames import FRAME_NS, ROT_COLUMNS, STRIKE_Y, TABLE_HALF_LENGTH
 from pingpong.twin.ball import (
+    SLOWER_AIMS,
     BallParams,
     Event,
     Flight,
@@ -96,7 +97,7 @@ def _aim(p_hit, v_in, w_in, target, w_wanted, speed, params: BallParams, fault: 
 
 def _aim_slower(p_hit, target, w, params: BallParams, speed: float, net_margin: float) -> np.ndarray:
     """aim_shots' velocity, at a lower speed hint (a higher, slower ball) when the net is in the way."""
-    for factor in (1.0, 0.6, 0.35):
+    for factor in SLOWER_AIMS:
         try:
             return aim_shots(p_hit, target, w, params, speed_hint=speed * factor, net_margin=net_margin)[0][0]
         except ValueError:
