@@ -27,7 +27,16 @@ from pingpong.uncertainty.fit import (
     restore_estimators,
 )
 from pingpong.uncertainty.knn import fit_knn, predict_knn
-from pingpong.uncertainty.metrics import ause, interval_metrics, sparsification, spearman, within_frames
+from pingpong.uncertainty.metrics import (
+    ause,
+    coverage_by_width,
+    ence,
+    interval_metrics,
+    sparsification,
+    spearman,
+    winkler_score,
+    within_frames,
+)
 from pingpong.uncertainty.names import ESTIMATORS
 from pingpong.uncertainty.quantile_heads import fit_quantile_heads, predict_quantiles
 from pingpong.uncertainty.registry import REGISTRY, Band, Estimator, Hits, UncertaintySettings, register
@@ -171,6 +180,33 @@ def test_sparsification_and_ause_hand_computed():
     errors = rng.exponential(size=4000)
     assert ause(rng.uniform(size=4000), errors) > 0.2
     assert ause(errors + rng.normal(0, 0.1, 4000), errors) < 0.1
+
+
+def test_ence_winkler_and_width_coverage_hand_computed():
+    # two bins: predicted std 1 with residuals of RMS 1 (calibrated), std 2 with RMS 1 (half too wide)
+    std = np.array([1.0, 1.0, 2.0, 2.0])
+    assert ence(std, np.array([1.0, -1.0, 1.0, -1.0]), n_bins=2) == pytest.approx((0 + 0.5) / 2)
+    rng = np.random.default_rng(3)
+    s = rng.uniform(0.1, 2.0, 20000)
+    assert ence(s, s * rng.standard_normal(s.size)) < 0.05  # Gaussian residuals of the stated std
+    assert ence(s, 2 * s * rng.standard_normal(s.size)) == pytest.approx(1.0, abs=0.05)  # twice too narrow
+    y, lower, upper = np.array([0.0, 5.0, -3.0]), np.array([-1.0, -1.0, -1.0]), np.array([1.0, 1.0, 1.0])
+    # widths 2 each; y = 5 lies 4 above, y = -3 lies 2 below: 2 + (2 / 0.1) * (0, 4, 2) on average
+    assert winkler_score(y, lower, upper, 0.1) == pytest.approx(2 + 20 * 6 / 3)
+    # widths 2, 2, 2, 10: the narrow pair (rows 0, 1) covers, the wide pair (rows 3 and 2) covers row 2 only
+    assert np.allclose(coverage_by_width(np.array([0.0, 0.0, 3.0, 3.0]), np.array([-1, -1, -5, -1.0]),
+                                         np.array([1, 1, 5, 1.0]), n_bins=2), [1.0, 0.5])
+
+
+@given(st.lists(st.tuples(st.floats(-5, 5), st.floats(0, 3), st.floats(0, 3)), min_size=1, max_size=40),
+       st.floats(0.01, 0.5))
+def test_winkler_score_is_at_least_the_width_and_equals_it_when_all_cover(rows, alpha):
+    y, below, above = np.array(rows).T
+    lower, upper = -below, above
+    width = float(np.mean(upper - lower))
+    assert winkler_score(y, lower, upper, alpha) >= width - 1e-9
+    inside = np.clip(y, lower, upper)
+    assert winkler_score(inside, lower, upper, alpha) == pytest.approx(width)
 
 
 @given(st.lists(st.floats(0, 10), min_size=1, max_size=40), st.floats(0.01, 0.98), st.floats(0.01, 0.98))

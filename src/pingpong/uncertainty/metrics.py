@@ -66,3 +66,33 @@ def interval_metrics(y, lower, upper) -> dict:
     mean = width.mean()  # +inf where too few calibration hits for the nominal coverage
     return {"coverage": float(np.mean((lower <= y) & (y <= upper))), "mean_width": float(mean),
             "width_cv": float(width.std() / mean) if 0 < mean < np.inf else float("nan")}
+
+
+def ence(std, residuals, n_bins: int = 10) -> float:
+    """Expected normalised calibration error (Levi et al. 2022): rows binned by predicted std into
+    `n_bins` equal-count bins; the mean over bins of |RMV - RMSE| / RMV, with RMV the root mean
+    predicted variance and RMSE the root mean squared residual of the bin (0: calibrated in every bin)."""
+    s, r = np.asarray(std, float), np.asarray(residuals, float)
+    if s.size < n_bins or not (np.isfinite(s).all() and (s > 0).all()):
+        return float("nan")
+    bins = np.array_split(np.argsort(s, kind="stable"), n_bins)
+    rmv = np.array([np.sqrt(np.mean(s[b] ** 2)) for b in bins])
+    rmse = np.array([np.sqrt(np.mean(r[b] ** 2)) for b in bins])
+    return float(np.mean(np.abs(rmv - rmse) / rmv))
+
+
+def winkler_score(y, lower, upper, alpha: float) -> float:
+    """Mean interval (Winkler) score of central (1 - alpha) intervals, m: the width plus 2 / alpha times
+    how far y lies outside (Gneiting & Raftery 2007); lower is better, the width alone when all cover."""
+    y, lower, upper = (np.asarray(a, float) for a in (y, lower, upper))
+    miss = np.maximum(lower - y, 0.0) + np.maximum(y - upper, 0.0)
+    return float(np.mean(upper - lower + 2.0 / alpha * miss))
+
+
+def coverage_by_width(y, lower, upper, n_bins: int = 3) -> np.ndarray:
+    """Coverage within each of `n_bins` equal-count bins of the interval width, narrowest first
+    (conditional coverage: an adaptive interval must not buy its narrow widths with misses)."""
+    y, lower, upper = (np.asarray(a, float) for a in (y, lower, upper))
+    covered = (lower <= y) & (y <= upper)
+    bins = np.array_split(np.argsort(upper - lower, kind="stable"), n_bins)
+    return np.array([covered[b].mean() for b in bins])
