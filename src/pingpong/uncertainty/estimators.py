@@ -12,6 +12,7 @@ imports this module for the names alone (the code hash still follows those impor
 
 import numpy as np
 
+from pingpong.frames import N_INPUT
 from pingpong.uncertainty.conformal import (
     conformal_quantile,
     cqr_scores,
@@ -22,6 +23,8 @@ from pingpong.uncertainty.registry import Band, Estimator, Hits, register
 from pingpong.uncertainty.time_to_hit import fit_trend, trend
 
 DIFFICULTY_FLOOR = 0.1  # sigma = difficulty + this share of its calibration median: no zero widths
+BALL_RATE = slice(2 * N_INPUT - 3, 2 * N_INPUT)  # features.frame_features: the ball's velocity (m/s) at the frame
+N_SPEED_BINS = 3  # the Mondrian context: terciles of the incoming ball's speed
 PREDICTED = ["a1", "a2", "b", "strike_x_pred"]  # the prediction's columns that the quantile heads read
 
 
@@ -160,6 +163,67 @@ class Mondrian(Estimator):
 
     def restore(self, state, model_stem, fitted):
         self.by_frame = {int(f): q for f, q in state["quantile_by_frame"].items()}
+
+
+@register
+class EnsembleTime(Estimator):
+    """The follow-up work's normalised split conformal per frame: scores |y - y_hat| / (std + c t) with
+    std the ensemble spread and t the frames before the hit, one quantile per frame. c (m per frame)
+    is the slope of the training hits' out-of-fold errors over t (clipped at 0), so the calibration
+    hits are left for the quantiles alone."""
+
+    name = "ensemble_time"
+
+    def _sigma(self, hits):
+        return hits.ensemble_strike.std(axis=0, ddof=1) + self.c * hits.frames + 1e-6
+
+    def fit(self, hits, fitted, rng):
+        train, cal = hits.train, hits.calibration
+        self.c = max(fit_trend(hits.frames[train], hits.abs_error[train])[1], 0.0)
+        scores = normalised_scores(hits.abs_error, self._sigma(hits))
+        self.by_frame = mondrian_quantiles(scores[cal], hits.frames[cal], self.alpha, hits.groups[cal])
+
+    def apply(self, hits):
+        return _interval(hits.pred, np.array([self.by_frame[f] for f in hits.frames]) * self._sigma(hits))
+
+    def state(self):
+        return {"c": self.c, "quantile_by_frame": {str(f): q for f, q in self.by_frame.items()}}
+
+    def restore(self, state, model_stem, fitted):
+        self.c = state["c"]
+        self.by_frame = {int(f): q for f, q in state["quantile_by_frame"].items()}
+
+
+@register
+class MondrianSpeed(Estimator):
+    """Mondrian conformal by frame and by a context the inputs reveal: the tercile of the incoming
+    ball's speed at that frame (the time pressure a fast ball puts on the player; tercile edges from
+    the training rows), one quantile of |y - y_hat| per (frame, tercile) cell."""
+
+    name = "mondrian_speed"
+
+    def _cells(self, hits):
+        speed = np.linalg.norm(hits.features[:, BALL_RATE], axis=1)
+        return hits.frames * N_SPEED_BINS + np.searchsorted(self.edges, speed)
+
+    def fit(self, hits, fitted, rng):
+        speed = np.linalg.norm(hits.features[hits.train, BALL_RATE], axis=1)
+        self.edges = np.quantile(speed, np.arange(1, N_SPEED_BINS) / N_SPEED_BINS)
+        cal = hits.calibration
+        self.by_cell = mondrian_quantiles(hits.abs_error[cal], self._cells(hits)[cal], self.alpha,
+                                          hits.groups[cal])
+
+    def apply(self, hits):
+        # a cell no calibration hit reached has no quantile: an infinite interval, as conformal gives
+        return _interval(hits.pred, np.array([self.by_cell.get(c, np.inf) for c in self._cells(hits)]))
+
+    def state(self):
+        return {"speed_edges_m_s": self.edges.tolist(),
+                "quantile_by_cell": {str(c): q for c, q in self.by_cell.items()}}
+
+    def restore(self, state, model_stem, fitted):
+        self.edges = np.asarray(state["speed_edges_m_s"])
+        self.by_cell = {int(c): q for c, q in state["quantile_by_cell"].items()}
 
 
 class Normalised(Estimator):
