@@ -23,7 +23,7 @@ from pingpong.uncertainty.registry import Band, Estimator, Hits, register
 from pingpong.uncertainty.time_to_hit import fit_trend, trend
 
 DIFFICULTY_FLOOR = 0.1  # sigma = difficulty + this share of its calibration median: no zero widths
-BALL_RATE = slice(2 * N_INPUT - 3, 2 * N_INPUT)  # features.frame_features: the ball's velocity (m/s) at the frame
+BALL_RATE = slice(2 * N_INPUT - 3, 2 * N_INPUT)  # frame_features: the ball velocity (m/s) at the frame
 N_SPEED_BINS = 3  # the Mondrian context: terciles of the incoming ball's speed
 PREDICTED = ["a1", "a2", "b", "strike_x_pred"]  # the prediction's columns that the quantile heads read
 
