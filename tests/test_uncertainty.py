@@ -239,7 +239,7 @@ def test_knn_time_trend_and_features():
 
 
 SETTINGS = UncertaintySettings(ensemble_size=3, coverage=0.9, knn_k=5, quantile_hidden=32, quantile_epochs=20,
-                               error_head_hidden=16, error_head_epochs=2)
+                               error_head_hidden=16, error_head_epochs=2, hetero_hidden=8, hetero_epochs=2)
 
 
 K = len(FRAMES_BEFORE_HIT)  # predictions per hit

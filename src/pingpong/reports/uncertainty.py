@@ -11,49 +11,114 @@ from pingpong.common.atomic import atomic_path  # noqa: E402
 from pingpong.uncertainty.metrics import (  # noqa: E402
     FRACTIONS,
     ause,
+    coverage_by_width,
+    ence,
     interval_metrics,
     sparsification,
     spearman,
+    winkler_score,
     within_frames,
 )
 from pingpong.uncertainty.names import PAPER_ESTIMATORS  # noqa: E402
+from pingpong.uncertainty.schemas import HIT_KEYS  # noqa: E402
 
 SCATTER_ESTIMATORS = ("ensemble", "knn", "conformal", "cqr")  # the paper's three, and CQR beside them
 LAST_FRAME = 0  # the paper's figure 3a-c: predictions made at t = 0, the hit frame
+
+
+ORACLE = "oracle"  # the twin's strike oracle as a row: the ceiling no estimator fed the inputs can pass
+ORACLE_FRAMES = range(1, 21)  # the issue's bar: mean within-frame Spearman with the oracle std over these
 
 
 def _test(table: pd.DataFrame) -> pd.DataFrame:
     return table[table["split"] == "test"]
 
 
-def summary_table(tables: dict[str, pd.DataFrame]) -> pd.DataFrame:
-    """One row per estimator: ranking metrics pooled and within frames, interval metrics (cm)."""
-    rows = []
+def with_oracle(tables: dict[str, pd.DataFrame], oracle_rows: pd.DataFrame | None) -> dict[str, pd.DataFrame]:
+    """Every estimator's test rows with the oracle std of their (hit, frame) (`oracle_std`, NaN unmatched),
+    and the oracle itself as a table (uncertainty = std = its std, interval = its [q05, q95]).
+
+    oracle_rows: uncertainty_oracle.join_test_hits (mirrored like the hits); None: no oracle (a lab run)."""
+    keys = [*HIT_KEYS, "frames_before_hit"]
+    out = {}
     for name, table in tables.items():
-        t = _test(table)
-        u, e, f = t["uncertainty"].to_numpy(), t["abs_error"].to_numpy(), t["frames_before_hit"].to_numpy()
-        pooled = interval_metrics(t["strike_x"], t["lower"], t["upper"])
-        per_frame = [interval_metrics(g["strike_x"], g["lower"], g["upper"])["coverage"]
-                     for _, g in t.groupby("frames_before_hit")]
-        rows.append({"estimator": name, "paper": name in PAPER_ESTIMATORS,
-                     "spearman_pooled": spearman(u, e),
-                     "spearman_within_frame": within_frames(spearman, u, e, f),
-                     "ause_pooled": ause(u, e), "ause_within_frame": within_frames(ause, u, e, f),
-                     "coverage": pooled["coverage"], "coverage_min_frame": np.min(per_frame),
-                     "coverage_max_frame": np.max(per_frame), "mean_width_cm": 100 * pooled["mean_width"],
-                     "width_cv": pooled["width_cv"], "n_test_hits": t[["session", "rally", "hit"]]
-                     .drop_duplicates().shape[0]})
+        test = _test(table).reset_index(drop=True)
+        if oracle_rows is None:
+            out[name] = test.assign(oracle_std=np.nan)
+            continue
+        std = oracle_rows[[*keys, "oracle_std_x"]].rename(columns={"oracle_std_x": "oracle_std"})
+        out[name] = test.merge(std, on=keys, how="left", validate="one_to_one")
+    if oracle_rows is not None and len(oracle_rows):
+        base = out[next(iter(out))].drop(columns=["uncertainty", "lower", "upper", "std", "oracle_std"])
+        rows = base.merge(oracle_rows[[*keys, "oracle_std_x", "oracle_q05_x", "oracle_q95_x"]], on=keys)
+        out[ORACLE] = rows.assign(uncertainty=rows["oracle_std_x"], std=rows["oracle_std_x"],
+                                  lower=rows["oracle_q05_x"], upper=rows["oracle_q95_x"],
+                                  oracle_std=rows["oracle_std_x"])
+    return out
+
+
+def _centre(t: pd.DataFrame) -> np.ndarray:
+    """The estimator's centre: its interval's midpoint, else the point prediction."""
+    mid = (t["lower"] + t["upper"]).to_numpy(float) / 2
+    return np.where(np.isfinite(mid), mid, t["strike_x_pred"].to_numpy(float))
+
+
+def _ranking(t: pd.DataFrame) -> dict:
+    u, e, f = (t[c].to_numpy(float) for c in ("uncertainty", "abs_error", "frames_before_hit"))
+    o = t["oracle_std"].to_numpy(float)
+    early = np.isin(f, ORACLE_FRAMES)
+    has_oracle = np.isfinite(o)
+    return {"spearman_pooled": spearman(u, e), "spearman_within_frame": within_frames(spearman, u, e, f),
+            "spearman_oracle_within_frame": within_frames(spearman, u[has_oracle], o[has_oracle],
+                                                          f[has_oracle]),
+            "spearman_oracle_frames_1_20": within_frames(spearman, u[early & has_oracle],
+                                                         o[early & has_oracle], f[early & has_oracle]),
+            "ause_within_frame": within_frames(ause, u, e, f),
+            "ause_oracle_within_frame": within_frames(ause, u[has_oracle], o[has_oracle], f[has_oracle])}
+
+
+def _intervals(t: pd.DataFrame, alpha: float) -> dict:
+    y, lower, upper = (t[c].to_numpy(float) for c in ("strike_x", "lower", "upper"))
+    pooled = interval_metrics(y, lower, upper)
+    if np.isnan(pooled["coverage"]):
+        nan = float("nan")
+        return {"coverage": nan, "coverage_min_frame": nan, "coverage_min_width_tercile": nan,
+                "winkler_90_cm": nan, "mean_width_cm": nan, "width_sd_cm": nan}
+    per_frame = [interval_metrics(g["strike_x"], g["lower"], g["upper"])["coverage"]
+                 for _, g in t.groupby("frames_before_hit")]
+    width = upper - lower
+    return {"coverage": pooled["coverage"], "coverage_min_frame": float(np.min(per_frame)),
+            "coverage_min_width_tercile": float(coverage_by_width(y, lower, upper).min()),
+            "winkler_90_cm": 100 * winkler_score(y, lower, upper, alpha),
+            "mean_width_cm": 100 * pooled["mean_width"],
+            "width_sd_cm": 100 * float(np.std(width)) if np.isfinite(width).all() else float("nan")}
+
+
+def summary_table(tables: dict[str, pd.DataFrame], coverage: float = 0.9) -> pd.DataFrame:
+    """One row per estimator (and the oracle, when `with_oracle` gave one), on the test rows: ranking
+    against the error and the oracle std (pooled, within frames), ENCE, the interval metrics (cm).
+    tables: with_oracle's (or any test rows with an oracle_std column, NaN where none)."""
+    rows = []
+    for name, t in tables.items():
+        t = _test(t) if "oracle_std" in t else _test(t).assign(oracle_std=np.nan)
+        residual = t["strike_x"].to_numpy(float) - _centre(t)
+        rows.append({"estimator": name, "paper": name in PAPER_ESTIMATORS, **_ranking(t),
+                     "ence": ence(t["std"].to_numpy(float), residual), **_intervals(t, 1 - coverage),
+                     "n_test_hits": t[HIT_KEYS].drop_duplicates().shape[0]})
     return pd.DataFrame(rows)
 
 
 def by_frame_table(tables: dict[str, pd.DataFrame]) -> pd.DataFrame:
-    """Per estimator and frame before the hit: Spearman, AUSE, coverage, mean width and median error (cm)."""
+    """Per estimator and frame before the hit: Spearman with the error and with the oracle std, AUSE,
+    coverage, mean width and median error (cm)."""
     rows = []
     for name, table in tables.items():
         for frame, t in _test(table).groupby("frames_before_hit"):
             u, e = t["uncertainty"].to_numpy(), t["abs_error"].to_numpy()
+            o = t["oracle_std"].to_numpy(float) if "oracle_std" in t else np.full(len(t), np.nan)
             interval = interval_metrics(t["strike_x"], t["lower"], t["upper"])
             rows.append({"estimator": name, "frames_before_hit": frame, "spearman": spearman(u, e),
+                         "spearman_oracle": spearman(u[np.isfinite(o)], o[np.isfinite(o)]),
                          "ause": ause(u, e), "coverage": interval["coverage"],
                          "mean_width_cm": 100 * interval["mean_width"],
                          "median_error_cm": 100 * np.median(e)})

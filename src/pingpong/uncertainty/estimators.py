@@ -11,6 +11,7 @@ imports this module for the names alone (the code hash still follows those impor
 """
 
 import numpy as np
+from scipy import stats
 
 from pingpong.frames import N_INPUT
 from pingpong.uncertainty.conformal import (
@@ -19,6 +20,7 @@ from pingpong.uncertainty.conformal import (
     mondrian_quantiles,
     normalised_scores,
 )
+from pingpong.uncertainty.metrics import winkler_score
 from pingpong.uncertainty.registry import Band, Estimator, Hits, register
 from pingpong.uncertainty.time_to_hit import fit_trend, trend
 
@@ -39,7 +41,8 @@ class Ensemble(Estimator):
     name, paper = "ensemble", True
 
     def apply(self, hits: Hits) -> Band:
-        return Band(hits.ensemble_strike.std(axis=0, ddof=1))
+        spread = hits.ensemble_strike.std(axis=0, ddof=1)
+        return Band(spread, std=spread)
 
 
 @register
@@ -306,3 +309,139 @@ class Cqr(Learned):
     def restore(self, state, model_stem, fitted):
         super().restore(state, model_stem, fitted)
         self.quantile = state["quantile"]
+
+
+@register
+class Hetero(Learned):
+    """The heteroscedastic head alone (hetero_head.py, beta-NLL): the residual's std, and the Gaussian
+    central interval around the bias-corrected prediction, uncalibrated."""
+
+    name, model_file = "hetero", "hetero_head"
+
+    @staticmethod
+    def models():
+        from pingpong.uncertainty import hetero_head
+
+        return hetero_head
+
+    def fit(self, hits, fitted, rng):
+        train = hits.by_hit(hits.train)[:, 0]  # a hit's rows share its split
+        pred, residual = hits.by_hit(hits.pred), hits.by_hit(hits.y - hits.pred)
+        self.model = self.models().fit_hetero_head(hits.X[train], pred[train], residual[train], rng,
+                                                   hidden=self.settings.hetero_hidden,
+                                                   epochs=self.settings.hetero_epochs)
+
+    def mean_std(self, hits) -> tuple[np.ndarray, np.ndarray]:
+        """(bias-corrected centre, std) per row, m."""
+        mean, std = self.models().predict_hetero(self.model, hits.X, hits.by_hit(hits.pred))
+        return hits.pred + mean.reshape(-1), std.reshape(-1)
+
+    def apply(self, hits):
+        centre, std = self.mean_std(hits)
+        half = stats.norm.ppf(1 - self.alpha / 2) * std
+        return Band(std, centre - half, centre + half, std=std)
+
+
+class OnHetero(Estimator):
+    """A conformal method around the heteroscedastic head's (centre, std), one quantile per frame."""
+
+    def fit(self, hits, fitted, rng):
+        self.hetero = fitted[Hetero.name]
+        centre, std = self.hetero.mean_std(hits)
+        cal = hits.calibration
+        scores = self.scores(hits.y, centre, std)
+        self.by_frame = mondrian_quantiles(scores[cal], hits.frames[cal], self.alpha, hits.groups[cal])
+
+    def apply(self, hits):
+        centre, std = self.hetero.mean_std(hits)
+        lower, upper = self.bounds(centre, std, np.array([self.by_frame[f] for f in hits.frames]))
+        return Band((upper - lower) / 2, lower, upper)
+
+    def state(self):
+        return {"quantile_by_frame": {str(f): q for f, q in self.by_frame.items()}}
+
+    def restore(self, state, model_stem, fitted):
+        self.hetero = fitted[Hetero.name]
+        self.by_frame = {int(f): q for f, q in state["quantile_by_frame"].items()}
+
+
+@register
+class NormalisedHetero(OnHetero):
+    """Normalised conformal on the head's std: scores |y - centre| / std, the interval centre +- q std."""
+
+    name = "normalised_hetero"
+
+    @staticmethod
+    def scores(y, centre, std):
+        return normalised_scores(np.abs(y - centre), std)
+
+    @staticmethod
+    def bounds(centre, std, q):
+        return centre - q * std, centre + q * std
+
+
+@register
+class CqrHetero(OnHetero):
+    """CQR (Romano et al. 2019) on the head's Gaussian quantiles centre -+ z std: scores how far y lies
+    outside them, the interval widened (or narrowed) by q on each side."""
+
+    name = "cqr_hetero"
+
+    def _quantiles(self, centre, std):
+        half = stats.norm.ppf(1 - self.alpha / 2) * std
+        return centre - half, centre + half
+
+    def scores(self, y, centre, std):
+        return cqr_scores(y, *self._quantiles(centre, std))
+
+    def bounds(self, centre, std, q):
+        lower, upper = self._quantiles(centre, std)
+        return lower - q, upper + q
+
+
+@register
+class Clear(Estimator):
+    """Aleatoric plus epistemic, calibrated in two parts (after CLEAR, Azizi et al., ICLR 2026): the
+    half-width gamma_f (std_aleatoric + lambda std_epistemic), std_aleatoric the heteroscedastic head's,
+    std_epistemic the ensemble spread, around the head's bias-corrected centre. lambda (their balance)
+    is the grid value whose calibrated intervals have the lowest Winkler score on the first half of the
+    calibration hits; gamma_f (the scale, per frame) is the conformal quantile of the normalised scores of
+    the other half, so the quantile's guarantee is untouched by the choice of lambda."""
+
+    name = "clear"
+    LAMBDAS = (0.0, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0)
+
+    def _parts(self, hits):
+        centre, aleatoric = self.hetero.mean_std(hits)
+        return centre, aleatoric, hits.ensemble_strike.std(axis=0, ddof=1)
+
+    def _gamma(self, hits, rows, lam):
+        centre, aleatoric, epistemic = self._parts(hits)
+        scores = normalised_scores(np.abs(hits.y - centre), aleatoric + lam * epistemic)
+        return mondrian_quantiles(scores[rows], hits.frames[rows], self.alpha, hits.groups[rows])
+
+    def _winkler(self, hits, rows, lam, gamma):
+        centre, aleatoric, epistemic = self._parts(hits)
+        half = np.array([gamma[f] for f in hits.frames[rows]]) * (aleatoric + lam * epistemic)[rows]
+        return winkler_score(hits.y[rows], centre[rows] - half, centre[rows] + half, self.alpha)
+
+    def fit(self, hits, fitted, rng):
+        self.hetero = fitted[Hetero.name]
+        cal_hits = np.unique(hits.groups[hits.calibration])
+        choose = np.isin(hits.groups, cal_hits[: len(cal_hits) // 2])
+        calibrate = hits.calibration & ~choose
+        self.lam = min(self.LAMBDAS, key=lambda lam: self._winkler(hits, choose, lam,
+                                                                   self._gamma(hits, choose, lam)))
+        self.by_frame = self._gamma(hits, calibrate, self.lam)
+
+    def apply(self, hits):
+        centre, aleatoric, epistemic = self._parts(hits)
+        half = np.array([self.by_frame[f] for f in hits.frames]) * (aleatoric + self.lam * epistemic)
+        return _interval(centre, half)
+
+    def state(self):
+        return {"lambda": self.lam, "gamma_by_frame": {str(f): q for f, q in self.by_frame.items()}}
+
+    def restore(self, state, model_stem, fitted):
+        self.hetero, self.lam = fitted[Hetero.name], state["lambda"]
+        self.by_frame = {int(f): q for f, q in state["gamma_by_frame"].items()}

@@ -66,8 +66,9 @@ def estimator_tables(hits: Hits, fitted: dict[str, Estimator]) -> dict[str, pd.D
     for name, estimator in fitted.items():
         band = estimator.apply(hits)
         lower, upper = (nan, nan) if band.lower is None else (band.lower, band.upper)
+        std = band.predicted_std(estimator.settings.coverage)
         tables[name] = base.assign(uncertainty=band.uncertainty[out], lower=lower[out],
-                                   upper=upper[out]).reset_index(drop=True)
+                                   upper=upper[out], std=std[out]).reset_index(drop=True)
     return tables
 
 

@@ -9,7 +9,7 @@ The workflow, the config's enums, the reports and the robot read the names from 
 `pingpong.uncertainty.names`), so adding an estimator touches one module: `pingpong.uncertainty.estimators`
 (docs/architecture.md, "Registries").
 
-Light on purpose (numpy, pandas and the config's helpers only): the Snakefile imports it.
+Light on purpose (numpy, pandas, scipy.stats and the config's helpers only): the Snakefile imports it.
 """
 
 from dataclasses import dataclass
@@ -17,6 +17,7 @@ from typing import ClassVar
 
 import numpy as np
 import pandas as pd
+from scipy import stats
 
 from pingpong.common.config import Settings
 
@@ -32,6 +33,8 @@ class UncertaintySettings(Settings):
     quantile_epochs: int
     error_head_hidden: int
     error_head_epochs: int
+    hetero_hidden: int
+    hetero_epochs: int
 
 
 @dataclass(frozen=True, eq=False)
@@ -65,11 +68,22 @@ class Hits:
 @dataclass(frozen=True)
 class Band:
     """An estimator's output on every row of the Hits it was applied to: the uncertainty (m; the
-    half-width for interval methods) and the interval's bounds (m), None where it gives no interval."""
+    half-width for interval methods), the interval's bounds (m), None where it gives no interval, and
+    the std of the strike x it implies (m; None: derived by `Band.predicted_std`)."""
 
     uncertainty: np.ndarray
     lower: np.ndarray | None = None
     upper: np.ndarray | None = None
+    std: np.ndarray | None = None
+
+    def predicted_std(self, coverage: float) -> np.ndarray:
+        """The std a Gaussian error would have: given, or a central `coverage` interval's half-width over
+        its normal quantile, or else (an expected |error|) the uncertainty times sqrt(pi / 2)."""
+        if self.std is not None:
+            return self.std
+        if self.lower is not None:
+            return (self.upper - self.lower) / 2 / stats.norm.ppf(0.5 + coverage / 2)
+        return self.uncertainty * np.sqrt(np.pi / 2)
 
 
 class Estimator:

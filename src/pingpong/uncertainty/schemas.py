@@ -3,8 +3,8 @@
 from pingpong.common.artifacts import Schema
 
 HIT_KEYS = ["session", "rally", "hit"]
-# one row per calibration or test hit and frame before the hit; uncertainty, lower, upper in m
-# (lower/upper NaN where the estimator gives no interval)
-UNCERTAINTY = Schema("uncertainty", 1, (*HIT_KEYS, "split", "frames_before_hit", "strike_x", "strike_x_pred",
-                                        "abs_error", "uncertainty", "lower", "upper"))
+# one row per calibration or test hit and frame before the hit; uncertainty, lower, upper, std in m
+# (lower/upper NaN where the estimator gives no interval; std: registry.Band.predicted_std)
+UNCERTAINTY = Schema("uncertainty", 2, (*HIT_KEYS, "split", "frames_before_hit", "strike_x", "strike_x_pred",
+                                        "abs_error", "uncertainty", "lower", "upper", "std"))
 FITTED = Schema("uncertainty_estimators", 1)  # estimators.json: fitted constants and diagnostics
