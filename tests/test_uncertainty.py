@@ -263,7 +263,7 @@ def toy_hits(n=60, seed=7) -> Hits:
 def test_fit_estimators_on_a_toy_dataset():
     hits = toy_hits()
     fitted = fit_estimators(hits, SETTINGS, np.random.default_rng(7))
-    tables, record = estimator_tables(hits, fitted), fitted_record(hits, fitted, SETTINGS.coverage)
+    tables, record = estimator_tables(hits, fitted), fitted_record(hits, fitted, SETTINGS.coverage, {})
     assert list(tables) == list(ESTIMATORS) and fitted["knn"].model.k == 5 and record["knn"] == {"k": 5}
     assert -1 <= record["diagnostics"]["member_error_spearman_within_frame"] <= 1
     for name, table in tables.items():
@@ -283,7 +283,7 @@ def test_estimators_restored_from_their_artifacts_apply_alike(tmp_path):
         if estimator.model_file:
             stems[estimator.model_file] = str(tmp_path / estimator.model_file)
             estimator.save_model(stems[estimator.model_file], Provenance.of("test"))
-    record = json.loads(json.dumps(fitted_record(hits, fitted, SETTINGS.coverage)))  # through JSON
+    record = json.loads(json.dumps(fitted_record(hits, fitted, SETTINGS.coverage, {})))  # through JSON
     restored = restore_estimators(record, SETTINGS, stems)
     assert list(restored) == list(fitted)
     for name, table in estimator_tables(hits, restored).items():

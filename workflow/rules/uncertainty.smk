@@ -57,13 +57,19 @@ rule fit_uncertainty:
         STAGE_SCRIPT
 
 
+# On the twin the estimators are also measured against its strike oracle (truth, read by reports only).
 rule report_uncertainty:
     input:
         tables=expand("processed/uncertainty/{estimator}.parquet", estimator=ESTIMATORS),
         fitted="processed/uncertainty/estimators.json",
+        dataset="processed/dataset.parquet",
+        predictions="processed/predictions.parquet",
+        oracle=expand("raw/twin_truth/{session}/strike_oracle.parquet", session=sessions()) if TWIN_ONLY else [],
     output:
         md="reports/tables/uncertainty.md",
         csv="reports/tables/uncertainty.csv",
+        path_md="reports/tables/uncertainty_path_band.md",
+        path_csv="reports/tables/uncertainty_path_band.csv",
         frames_md="reports/tables/uncertainty_by_frame.md",
         frames_csv="reports/tables/uncertainty_by_frame.csv",
         verdict_md="reports/tables/uncertainty_verdict.md",
@@ -88,8 +94,19 @@ rule report_uncertainty:
             caption="../report/uncertainty_spearman_by_frame.rst",
             category="uncertainty",
         ),
+        spearman_oracle_by_frame=report(
+            "reports/figures/uncertainty_spearman_oracle_by_frame.png",
+            caption="../report/uncertainty_spearman_oracle_by_frame.rst",
+            category="uncertainty",
+        ),
+        coverage_by_width=report(
+            "reports/figures/uncertainty_coverage_by_width.png",
+            caption="../report/uncertainty_coverage_by_width.rst",
+            category="uncertainty",
+        ),
     params:
         coverage=UNCERTAINTY["coverage"],
+        sessions=sessions() if TWIN_ONLY else [],
         seed=config["seed"],
         code=code("report_uncertainty"),
     log:

@@ -20,6 +20,7 @@ from pingpong.uncertainty.metrics import (  # noqa: E402
     within_frames,
 )
 from pingpong.uncertainty.names import PAPER_ESTIMATORS  # noqa: E402
+from pingpong.uncertainty.path_band import PathBand, path_band_table  # noqa: E402
 from pingpong.uncertainty.schemas import HIT_KEYS  # noqa: E402
 
 SCATTER_ESTIMATORS = ("ensemble", "knn", "conformal", "cqr")  # the paper's three, and CQR beside them
@@ -125,6 +126,19 @@ def by_frame_table(tables: dict[str, pd.DataFrame]) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def path_band_report(states: dict, dataset: pd.DataFrame, predictions: pd.DataFrame) -> pd.DataFrame:
+    """The whole-path bands (estimators.json's path_band states) on the final model's test predictions:
+    path_band.path_band_table, one row per band kind."""
+    test = predictions[(predictions["model"] == "final") & (predictions["split"] == "test")]
+    labels = dataset[[*HIT_KEYS, "a1", "a2", "b"]].rename(columns={c: f"{c}_true" for c in ("a1", "a2", "b")})
+    rows = test.merge(labels, on=HIT_KEYS, validate="many_to_one")
+    bands = [PathBand.from_state(state) for state in states.values()]
+    table = path_band_table(bands, rows[["a1", "a2", "b"]].to_numpy(float),
+                            rows[["a1_true", "a2_true", "b_true"]].to_numpy(float),
+                            rows["frames_before_hit"].to_numpy())
+    return table.reset_index().assign(n_test_hits=rows[HIT_KEYS].drop_duplicates().shape[0])
+
+
 def _save(fig, path) -> None:
     fig.tight_layout()
     with atomic_path(path) as tmp:
@@ -194,4 +208,43 @@ def plot_spearman_by_frame(by_frame: pd.DataFrame, path) -> None:
     ax.set_ylabel("Spearman(uncertainty, |error|) within the frame")
     ax.legend(fontsize=7)
     ax.grid(alpha=0.3)
+    _save(fig, path)
+
+
+def plot_spearman_oracle_by_frame(by_frame: pd.DataFrame, path) -> None:
+    """Per frame before the hit, each estimator's within-frame Spearman with the oracle std, and the
+    oracle's own Spearman with the model's error (the most any uncertainty could rank the errors)."""
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for name, g in by_frame.groupby("estimator", sort=False):
+        if name == ORACLE:
+            ax.plot(-g["frames_before_hit"], g["spearman"], "k-", lw=2, label="oracle std vs |error|")
+        elif g["spearman_oracle"].notna().any():
+            ax.plot(-g["frames_before_hit"], g["spearman_oracle"], marker=".",
+                    linestyle="-" if name in PAPER_ESTIMATORS else ":", label=name)
+    if not by_frame["spearman_oracle"].notna().any():
+        ax.text(0.5, 0.5, "no strike oracle (not a twin run)", transform=ax.transAxes, ha="center")
+    ax.axhline(0.0, color="k", linewidth=0.8)
+    ax.set_xlabel("frames before the hit (100 Hz)")
+    ax.set_ylabel("Spearman with the oracle std, within the frame")
+    ax.legend(fontsize=6, ncol=2)
+    ax.grid(alpha=0.3)
+    _save(fig, path)
+
+
+def plot_coverage_by_width(tables: dict[str, pd.DataFrame], path, coverage: float = 0.9) -> None:
+    """Coverage within each tercile of the interval width (narrowest first), one group per interval
+    estimator, against the nominal coverage and the 85 % floor."""
+    rows = {name: coverage_by_width(*(t[c].to_numpy(float) for c in ("strike_x", "lower", "upper")))
+            for name, t in ((n, _test(t)) for n, t in tables.items()) if t["lower"].notna().any()}
+    fig, ax = plt.subplots(figsize=(max(6, 0.6 * len(rows)), 4))
+    x = np.arange(len(rows))
+    for k, label in enumerate(("narrowest", "middle", "widest")):
+        ax.bar(x + (k - 1) * 0.27, [v[k] for v in rows.values()], width=0.27, label=f"{label} third")
+    ax.axhline(coverage, color="k", lw=1, label="nominal")
+    ax.axhline(0.85, color="r", lw=1, ls="--", label="85 %")
+    ax.set_xticks(x, list(rows), rotation=45, ha="right", fontsize=7)
+    ax.set_ylim(0.5, 1.0)
+    ax.set_ylabel("coverage within the width tercile")
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3, axis="y")
     _save(fig, path)

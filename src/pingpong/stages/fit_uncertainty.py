@@ -8,7 +8,13 @@ from pingpong.common.seeding import rng_for
 from pingpong.curation.schemas import DATASET
 from pingpong.learning.models import load_net
 from pingpong.learning.schemas import PREDICTIONS
-from pingpong.uncertainty.fit import estimator_hits, estimator_tables, fit_estimators, fitted_record
+from pingpong.uncertainty.fit import (
+    estimator_hits,
+    estimator_tables,
+    fit_estimators,
+    fit_path_bands,
+    fitted_record,
+)
 from pingpong.uncertainty.registry import UncertaintySettings
 from pingpong.uncertainty.schemas import FITTED, UNCERTAINTY
 
@@ -22,13 +28,15 @@ def main(ctx):
     settings = UncertaintySettings.from_config(ctx.params["settings"])
     members = [load_net(stem) for stem in _stems(ctx.input.members).values()]
     i = ctx.input
-    hits = estimator_hits(read_table(i.dataset, DATASET), read_table(i.predictions, PREDICTIONS), members)
+    dataset = read_table(i.dataset, DATASET)
+    hits = estimator_hits(dataset, read_table(i.predictions, PREDICTIONS), members)
     fitted = fit_estimators(hits, settings, rng_for(ctx.params["seed"], "uncertainty"))
     prov = ctx.provenance()
     tables, paths = estimator_tables(hits, fitted), _stems(ctx.output.tables)
     for name, table in tables.items():
         write_table(table, paths[name] + ".parquet", UNCERTAINTY, prov)
-    write_json(fitted_record(hits, fitted, settings.coverage), ctx.output.fitted, FITTED, prov)
+    record = fitted_record(hits, fitted, settings.coverage, fit_path_bands(dataset, hits, settings.coverage))
+    write_json(record, ctx.output.fitted, FITTED, prov)
     models = _stems(ctx.output.models)
     for estimator in fitted.values():
         if estimator.model_file:

@@ -10,6 +10,7 @@ from pingpong.uncertainty import estimators as _registered  # noqa: F401  (fills
 from pingpong.uncertainty.estimators import PREDICTED
 from pingpong.uncertainty.features import frame_features
 from pingpong.uncertainty.metrics import spearman, within_frames
+from pingpong.uncertainty.path_band import fit_path_band, fit_pointwise_band
 from pingpong.uncertainty.registry import REGISTRY, Estimator, Hits, UncertaintySettings
 from pingpong.uncertainty.schemas import HIT_KEYS
 
@@ -103,10 +104,30 @@ def _json_safe(value):
     return value
 
 
-def fitted_record(hits: Hits, fitted: dict[str, Estimator], coverage: float) -> dict:
-    """estimators.json: the coverage, every estimator's state under its name, and the diagnostics."""
+def path_labels(dataset: pd.DataFrame, hits: Hits) -> tuple[np.ndarray, np.ndarray]:
+    """(predicted, true) path parameters (a1, a2, b) of every row of hits (rows, 3)."""
+    true = dataset[["a1", "a2", "b"]].to_numpy(float)[hits.column("hit_index")]
+    return hits.rows[["a1", "a2", "b"]].to_numpy(float), true
+
+
+def fit_path_bands(dataset: pd.DataFrame, hits: Hits, coverage: float) -> dict:
+    """The whole-path bands (path_band.py), simultaneous and pointwise, as their JSON states: scales from
+    the training hits' out-of-fold predictions, quantiles from the calibration hits."""
+    pred, true = path_labels(dataset, hits)
+    train, cal = hits.train, hits.calibration
+    alpha = 1 - coverage
+    simultaneous = fit_path_band(pred[train], true[train], hits.frames[train], pred[cal], true[cal],
+                                 hits.frames[cal], hits.groups[cal], alpha)
+    pointwise = fit_pointwise_band(pred[cal], true[cal], hits.frames[cal], hits.groups[cal], alpha)
+    return {band.kind: band.state() for band in (simultaneous, pointwise)}
+
+
+def fitted_record(hits: Hits, fitted: dict[str, Estimator], coverage: float, path_bands: dict) -> dict:
+    """estimators.json: the coverage, every estimator's state under its name, the whole-path bands'
+    states (fit_path_bands) and the diagnostics."""
     states = {name: e.state() for name, e in fitted.items() if e.state()}
-    return _json_safe({"coverage": coverage, **states, "diagnostics": diagnostics(hits, fitted)})
+    return _json_safe({"coverage": coverage, **states, "path_band": path_bands,
+                       "diagnostics": diagnostics(hits, fitted)})
 
 
 def _from_json(value):
