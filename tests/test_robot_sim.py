@@ -166,8 +166,9 @@ def test_robot_table_regions_add_up_and_compare_against_servo():
                          "region": ["left", "left", "centre", "right", "right", "right"]})
     sim = lambda hit: keys.assign(hit_ball=hit, end_distance_m=np.linspace(0.01, 0.3, 6),  # noqa: E731
                                   limits_ok=True)
-    table = robot_table({"servo": sim([1, 0, 1, 0, 0, 0]), "anticipatory": sim([1, 1, 1, 1, 1, 0])},
-                        np.random.default_rng(1), 500)
+    table = robot_table({"servo": sim([1, 0, 1, 0, 0, 0]), "anticipatory": sim([1, 1, 1, 1, 1, 0]),
+                         "uncertainty_aware": sim([1, 1, 0, 0, 0, 0]),
+                         "confidence_scaled_oracle": sim([1, 1, 1, 1, 1, 1])}, np.random.default_rng(1), 500)
     for _, rows in table.groupby("controller"):
         regions = rows.set_index("region")
         assert regions.loc["all", "total"] == regions.loc[["left", "centre", "right"], "total"].sum() == 6
@@ -176,6 +177,11 @@ def test_robot_table_regions_add_up_and_compare_against_servo():
     assert all_rows.loc["anticipatory", "hits_minus_servo"] == 3
     assert all_rows.loc["anticipatory", "mcnemar_p"] == pytest.approx(0.25)  # 3 discordant, one way
     assert all_rows.loc["servo", "hits_minus_servo"] == 0
+    # a confidence-scaled controller is also compared with the paper's uncertainty-aware one: +4, one way
+    oracle = all_rows.loc["confidence_scaled_oracle"]
+    assert oracle["hits_minus_uncertainty_aware"] == 4 and oracle["paper_ua_mcnemar_p"] == pytest.approx(0.125)
+    assert 0 < oracle["paper_ua_diff_ci95_low"] <= 4 <= oracle["paper_ua_diff_ci95_high"]
+    assert all_rows["hits_minus_uncertainty_aware"].isna().sum() == 3  # the others are not compared
     d = 100 * np.linspace(0.01, 0.3, 6)
     assert all_rows.loc["servo", "end_distance_mean_cm"] == pytest.approx(d.mean())
     assert all_rows.loc["servo", "end_distance_half_std_cm"] == pytest.approx(0.5 * d.std())

@@ -4,8 +4,11 @@
 from pingpong.robot.controllers import CONTROLLERS, controller_names
 
 ROBOT = config["robot"]
-# the registered controllers; those that follow an estimator only when one is configured
-ROBOT_CONTROLLERS = controller_names(with_uncertainty=ROBOT["estimator"] is not None)
+# the registered controllers; those that follow an estimator only when one is configured, the one that
+# follows the twin's strike oracle (the ceiling of confidence scaling) only on the twin; the scenes show
+# the controllers a real robot could run
+SCENE_CONTROLLERS = controller_names(with_uncertainty=ROBOT["estimator"] is not None)
+ROBOT_CONTROLLERS = controller_names(with_uncertainty=ROBOT["estimator"] is not None, with_oracle=TWIN_ONLY)
 ROBOT_SETTINGS = {k: ROBOT[k] for k in ("accelerations", "timing", "timings", "servo_fit", "alpha_grid",
                                         "confidence_quantiles", "max_flight_s")}
 # the ball as visual servoing sees it: the causal inputs' measurements (flights.py); with zero-phase inputs,
@@ -24,11 +27,12 @@ rule simulate_robot:
         # the robot's description: read from these inputs, so an edit to either reruns the rule
         limits="config/robot/limits.yaml",
         urdf="config/robot/iiwa14_ridgeback.urdf",
-        # a controller that follows an estimator reads the configured one's uncertainties
+        # a controller that follows an estimator reads the configured one's uncertainties; the oracle's
+        # controller the oracle's
         uncertainty=lambda wc: (
             [f"processed/uncertainty/{ROBOT['estimator']}.parquet"]
             if CONTROLLERS[wc.controller].uses_uncertainty
-            else []
+            else ["processed/oracle_uncertainty.parquet"] if CONTROLLERS[wc.controller].uses_oracle else []
         ),
     output:
         sim="processed/sim/{controller}.parquet",
@@ -86,18 +90,18 @@ rule robot_scene:
         balls=expand("interim/filtered/{session}_ball.parquet", session=sessions()),
         seen_balls=SEEN_BALLS,
         uncertainty=[f"processed/uncertainty/{ROBOT['estimator']}.parquet"] if ROBOT["estimator"] else [],
-        sims=expand("processed/sim/{controller}.parquet", controller=ROBOT_CONTROLLERS),
-        choices=expand("processed/sim/{controller}.json", controller=ROBOT_CONTROLLERS),
+        sims=expand("processed/sim/{controller}.parquet", controller=SCENE_CONTROLLERS),
+        choices=expand("processed/sim/{controller}.json", controller=SCENE_CONTROLLERS),
         limits="config/robot/limits.yaml",
         urdf="config/robot/iiwa14_ridgeback.urdf",
     output:
         # {controller}_test{k}: the k-th test hit of the dataset (its session, rally and hit are in the
         # file's metadata record 'episode')
-        mcaps=expand("processed/sim/scenes/{controller}_test{k}.mcap", controller=ROBOT_CONTROLLERS,
+        mcaps=expand("processed/sim/scenes/{controller}_test{k}.mcap", controller=SCENE_CONTROLLERS,
                      k=range(ROBOT["scene_hits"])),
         figure=report("reports/figures/robot_scene.png", caption="../report/robot_scene.rst", category="robot"),
     params:
-        controllers=ROBOT_CONTROLLERS,
+        controllers=SCENE_CONTROLLERS,
         sessions=sessions(),
         n_hits=ROBOT["scene_hits"],
         seen_cutoff_hz=CURATION["causal_cutoff_ball_hz"],
@@ -136,6 +140,26 @@ rule robot_ablation:
         "logs/robot_ablation.log",
     benchmark:
         "benchmarks/results/robot_ablation.tsv"
+    conda:
+        CONDA_ENV
+    script:
+        STAGE_SCRIPT
+
+
+# Twin only: the strike oracle as an uncertainty table of the calibration and test hits, for the robot's
+# ceiling of confidence scaling (truth: no estimator reads it).
+rule oracle_uncertainty:
+    input:
+        dataset="processed/dataset.parquet",
+        predictions="processed/predictions.parquet",
+        oracle=expand("raw/twin_truth/{session}/strike_oracle.parquet", session=sessions()),
+    output:
+        table="processed/oracle_uncertainty.parquet",
+    params:
+        sessions=sessions(),
+        code=code("oracle_uncertainty"),
+    log:
+        "logs/oracle_uncertainty.log",
     conda:
         CONDA_ENV
     script:

@@ -2,8 +2,9 @@
 
 Tables 2-4 give, per region of the true strike point and over all test hits: total, hits, and the end
 distance (paddle centre to ball at the strike line) as mean +- 0.5 std. Beside them, each controller is
-compared with visual servoing alone on the same hits: the exact (binomial) McNemar test on the
-discordant pairs and a paired bootstrap interval of the difference in hits.
+compared with visual servoing alone on the same hits, and each confidence-scaled controller with the
+paper's uncertainty-aware one: the exact (binomial) McNemar test on the discordant pairs and a paired
+bootstrap interval of the difference in hits.
 """
 
 import numpy as np
@@ -15,6 +16,8 @@ from pingpong.robot.model import N_BASE, Robot
 
 REGIONS = ("left", "centre", "right", "all")
 BASELINE = "servo"
+PAPER_CONTROLLER = "uncertainty_aware"  # what a controller that follows an uncertainty must beat
+CONFIDENCE_PREFIX = "confidence_scaled"  # the controllers that follow an uncertainty (estimator or oracle)
 # the paper's Tables 2-4 (223 test hits): per region (total, hits, end distance mean cm, 0.5 std cm)
 PAPER_TABLES = {
     "servo": {"right": (101, 60, 10.13, 4.38), "centre": (81, 60, 6.26, 1.93), "left": (41, 24, 12.82, 7.31),
@@ -59,23 +62,36 @@ def bootstrap_hit_difference(hits_base: np.ndarray, hits_other: np.ndarray, rng:
     return float(low), float(high)
 
 
+def _paired_comparison(base: pd.Series, sim: pd.DataFrame, name: str, base_name: str,
+                       rng: np.random.Generator, n_boot: int) -> tuple[int, float, float, float]:
+    """(hits of `sim` minus hits of `base` on the same hits, bootstrap 95 % interval, exact McNemar p)."""
+    paired = sim.set_index(HIT_KEYS)["hit_ball"].reindex(base.index)
+    if paired.isna().any():
+        raise ValueError(f"controller '{name}' was not simulated on the same hits as '{base_name}'")
+    ours, theirs = paired.to_numpy(bool), base.to_numpy(bool)
+    low, high = bootstrap_hit_difference(theirs, ours, rng, n_boot)
+    return int(ours.sum() - theirs.sum()), low, high, mcnemar_exact(theirs, ours)
+
+
 def robot_table(sims: dict[str, pd.DataFrame], rng: np.random.Generator, n_boot: int = 2000) -> pd.DataFrame:
     """Tables 2-4 for every controller (SIM tables by name), with the comparison against 'servo' on the
-    'all' rows: difference in hits, its bootstrap 95 % interval and the exact McNemar p-value."""
-    base = sims[BASELINE].set_index(HIT_KEYS)["hit_ball"]
+    'all' rows: difference in hits, its bootstrap 95 % interval and the exact McNemar p-value; and, for the
+    controllers that follow an uncertainty (CONFIDENCE_PREFIX), the same against the paper's
+    uncertainty-aware controller (paper_ua_* columns), where it ran."""
+    bases = {"": BASELINE, "paper_ua_": PAPER_CONTROLLER}
     parts = []
     for name, sim in sims.items():
         table = region_rows(sim)
         table.insert(0, "controller", name)
-        paired = sim.set_index(HIT_KEYS)["hit_ball"].reindex(base.index)
-        if paired.isna().any():
-            raise ValueError(f"controller '{name}' was not simulated on the same hits as '{BASELINE}'")
-        ours, theirs = paired.to_numpy(bool), base.to_numpy(bool)
-        low, high = bootstrap_hit_difference(theirs, ours, rng, n_boot)
-        comparison = {"hits_minus_servo": int(ours.sum() - theirs.sum()), "diff_ci95_low": low,
-                      "diff_ci95_high": high, "mcnemar_p": mcnemar_exact(theirs, ours)}
-        for column, value in comparison.items():
-            table[column] = np.where(table["region"] == "all", value, np.nan)
+        for prefix, base_name in bases.items():
+            applies = base_name in sims and (not prefix or name.startswith(CONFIDENCE_PREFIX))
+            base = sims[base_name].set_index(HIT_KEYS)["hit_ball"] if applies else None
+            values = (_paired_comparison(base, sim, name, base_name, rng, n_boot) if applies
+                      else (np.nan,) * 4)
+            columns = (f"hits_minus_{base_name}" if prefix else "hits_minus_servo", f"{prefix}diff_ci95_low",
+                       f"{prefix}diff_ci95_high", f"{prefix}mcnemar_p")
+            for column, value in zip(columns, values, strict=True):
+                table[column] = np.where(table["region"] == "all", value, np.nan)
         parts.append(with_paper(table, name))
     return pd.concat(parts, ignore_index=True)
 

@@ -42,15 +42,15 @@ def mirror_oracle(oracle: pd.DataFrame, far) -> pd.DataFrame:
 
 
 def join_test_hits(dataset: pd.DataFrame, predictions: pd.DataFrame,
-                          oracles: dict[str, pd.DataFrame]) -> pd.DataFrame:
-    """One row per matched test hit and frame before the hit: the final model's strike_x (label),
-    strike_x_pred and abs_error beside its shot's oracle, mirrored like the hit.
+                   oracles: dict[str, pd.DataFrame], splits=("test",)) -> pd.DataFrame:
+    """One row per matched hit of `splits` and frame before the hit: the final model's strike_x (label),
+    strike_x_pred and abs_error beside its shot's oracle, mirrored like the hit, and the hit's split.
 
-    A test hit's shot is the session's oracle shot with the nearest t_hit_ns within one frame
+    A hit's shot is the session's oracle shot with the nearest t_hit_ns within one frame
     (curation_accuracy.nearest_shot); a hit with none is left out (the stage's caption counts them).
     The shot's keys come as twin_rally, twin_shot: curation numbers rallies its own way.
     """
-    test = dataset.loc[dataset["split"] == "test", [*HIT_KEYS, "hitter", "t_hit_ns"]]
+    test = dataset.loc[dataset["split"].isin(splits), [*HIT_KEYS, "split", "hitter", "t_hit_ns"]]
     twin = {"rally": "twin_rally", "shot": "twin_shot", "t_hit_ns": "twin_t_hit_ns"}
     parts = []
     for session, hits in test.groupby("session"):
@@ -60,7 +60,7 @@ def join_test_hits(dataset: pd.DataFrame, predictions: pd.DataFrame,
         found = hits[at >= 0].assign(twin_rally=shots["twin_rally"].to_numpy()[at[at >= 0]],
                                      twin_shot=shots["twin_shot"].to_numpy()[at[at >= 0]])
         parts.append(found.merge(oracle, on=["twin_rally", "twin_shot"]))
-    final = predictions.loc[(predictions["model"] == FINAL) & (predictions["split"] == "test"),
+    final = predictions.loc[(predictions["model"] == FINAL) & predictions["split"].isin(splits),
                             [*HIT_KEYS, "frames_before_hit", "strike_x", "strike_x_pred", "abs_error"]]
     empty = pd.DataFrame(columns=[*test, *twin.values(), "frames_before_hit", *ORACLE_X])  # no test hits
     matched = pd.concat(parts, ignore_index=True) if parts else empty
@@ -193,3 +193,20 @@ def write_oracle_report(by_frame: pd.DataFrame, causes: pd.DataFrame, md_path, c
     counts = [c for t in (by_frame, causes) for c in t if pd.api.types.is_integer_dtype(t[c])]
     stacked[counts] = stacked[counts].astype("Int64")  # stay integers beside the other table's blanks
     write_text_atomic(csv_path, stacked[["table", *by_frame, *causes]].to_csv(index=False))
+
+
+def oracle_uncertainty(dataset: pd.DataFrame, predictions: pd.DataFrame,
+                       oracles: dict[str, pd.DataFrame]) -> pd.DataFrame:
+    """The oracle as an uncertainty table (uncertainty.schemas.UNCERTAINTY) of the calibration and test
+    hits: uncertainty = std = the oracle std, the interval its [q05, q95]. For the robot's ceiling of
+    confidence scaling only: it is the twin's truth, which no estimator sees."""
+    splits = ("calibration", "test")
+    keys = [*HIT_KEYS, "frames_before_hit"]
+    matched = join_test_hits(dataset, predictions, oracles, splits)[[*keys, *ORACLE_X]]
+    final = predictions.loc[(predictions["model"] == FINAL) & predictions["split"].isin(splits),
+                            [*keys, "split", "strike_x", "strike_x_pred", "abs_error"]]
+    rows = final.merge(matched, on=keys, how="left", validate="one_to_one").sort_values(keys)
+    # a hit no twin shot matched has no oracle: infinite uncertainty, so a confidence ramp never trusts it
+    std = rows["oracle_std_x"].fillna(np.inf)
+    return rows.assign(uncertainty=std, std=std, lower=rows["oracle_q05_x"], upper=rows["oracle_q95_x"]
+                       ).reset_index(drop=True)

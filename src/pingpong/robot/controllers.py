@@ -52,8 +52,13 @@ class ControllerKind:
     name: str
     fixed: Controller | None = None  # one controller, or
     grid: Callable[[str, Tuning], list[Controller]] | None = None  # candidates swept on calibration hits
-    uses_uncertainty: bool = False  # follows the uncertainties of config robot.estimator
+    uses_uncertainty: bool = False  # follows the uncertainties of config robot.estimator, or
+    uses_oracle: bool = False  # of the twin's strike oracle (twin runs only: the ceiling of confidence)
     description: str = ""
+
+    @property
+    def follows_uncertainty(self) -> bool:
+        return self.uses_uncertainty or self.uses_oracle
 
 
 def alpha_grid(name: str, tuning: Tuning) -> list[Controller]:
@@ -86,9 +91,11 @@ def register(kind: ControllerKind) -> ControllerKind:
     return kind
 
 
-def controller_names(with_uncertainty: bool) -> list[str]:
-    """The registered controllers, in order; those that follow an estimator only `with_uncertainty`."""
-    return [name for name, kind in CONTROLLERS.items() if with_uncertainty or not kind.uses_uncertainty]
+def controller_names(with_uncertainty: bool, with_oracle: bool = False) -> list[str]:
+    """The registered controllers, in order; those that follow an estimator only `with_uncertainty`, the
+    oracle only `with_oracle`."""
+    return [name for name, kind in CONTROLLERS.items()
+            if (with_uncertainty or not kind.uses_uncertainty) and (with_oracle or not kind.uses_oracle)]
 
 
 register(ControllerKind("servo", fixed=Controller("servo"),
@@ -101,3 +108,6 @@ register(ControllerKind("uncertainty_aware", grid=alpha_grid,
 register(ControllerKind("confidence_scaled", grid=confidence_grid, uses_uncertainty=True,
                         description="beyond the paper: alpha = ramp(u) of the latest prediction's calibrated "
                                     "uncertainty u, 1 for u <= u_full, 0 for u >= u_zero, linear between"))
+register(ControllerKind("confidence_scaled_oracle", grid=confidence_grid, uses_oracle=True,
+                        description="the confidence-scaled controller on the twin's strike oracle std (twin "
+                                    "runs only): the most confidence scaling could win"))

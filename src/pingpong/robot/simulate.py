@@ -21,7 +21,7 @@ def hit_parts(hits: pd.DataFrame, balls: tuple[dict, dict | None], predictions: 
     """(hits, their flights, their predictions) as a controller sees them: with the configured estimator's
     uncertainties only where the controller follows them. balls: (judged, seen) ball tables by session
     (flights.hit_flights)."""
-    follows = CONTROLLERS[controller].uses_uncertainty
+    follows = CONTROLLERS[controller].follows_uncertainty
     return (hits, hit_flights(hits, balls[0], max_flight_s, balls[1]),
             hit_predictions(predictions, hits, uncertainty if follows else None))
 

@@ -46,6 +46,6 @@ def choose_controller(name: str, robot: Robot, hits: pd.DataFrame, flights: list
         return kind.fixed, None
     if len(hits) == 0:
         raise ValueError(f"controller '{name}' is tuned on the calibration hits, and there are none")
-    uncertainty = np.concatenate([p.uncertainty for p in predictions]) if kind.uses_uncertainty else None
+    uncertainty = np.concatenate([p.uncertainty for p in predictions]) if kind.follows_uncertainty else None
     return sweep(robot, hits, flights, predictions, kind.grid(name, Tuning(alphas, quantiles, uncertainty)),
                  settings)
