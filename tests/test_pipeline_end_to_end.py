@@ -72,8 +72,17 @@ def test_uncertainty_tables_for_every_estimator_held_out_hit_and_frame(tiny_run)
         assert (table.loc[interval, "lower"] <= table.loc[interval, "upper"]).all(), name
     assert (tiny_run / "processed/uncertainty/quantile_heads.safetensors").is_file()
     report = pd.read_csv(tiny_run / "reports/tables/uncertainty.csv")
-    assert list(report["estimator"]) == list(ESTIMATORS)
-    for figure in ("error_vs_uncertainty", "error_vs_frames", "sparsification"):
+    assert list(report["estimator"]) == [*ESTIMATORS, "oracle"]  # the twin's oracle: the ceiling row
+    oracle = report.set_index("estimator").loc["oracle"]
+    assert oracle["spearman_oracle_within_frame"] == pytest.approx(1.0)  # its std against itself
+    verdict = pd.read_csv(tiny_run / "reports/tables/uncertainty_verdict.csv")
+    assert list(verdict["estimator"]) == list(ESTIMATORS) and (verdict["n_oracle_hits"] > 0).all()
+    bands = pd.read_csv(tiny_run / "reports/tables/uncertainty_path_band.csv").set_index("band")
+    assert set(bands.index) == {"simultaneous", "pointwise"}
+    simultaneous = bands.loc["simultaneous"]
+    assert simultaneous["whole_path_coverage"] <= simultaneous["strike_point_coverage"]
+    for figure in ("error_vs_uncertainty", "error_vs_frames", "sparsification", "spearman_oracle_by_frame",
+                   "coverage_by_width"):
         assert (tiny_run / f"reports/figures/uncertainty_{figure}.png").stat().st_size > 1000
 
 
@@ -81,7 +90,8 @@ def test_robot_simulates_every_test_hit_per_controller_within_the_limits(tiny_ru
     dataset = pd.read_parquet(tiny_run / "processed/dataset.parquet")
     test_hits = dataset.loc[dataset["split"] == "test", ["session", "rally", "hit"]]
     table = pd.read_csv(tiny_run / "reports/tables/robot.csv")
-    controllers = ["servo", "anticipatory", "uncertainty_aware", "confidence_scaled"]
+    controllers = ["servo", "anticipatory", "uncertainty_aware", "confidence_scaled",
+                   "confidence_scaled_oracle"]
     assert list(table["controller"].unique()) == controllers
     for controller in controllers:
         sim = pd.read_parquet(tiny_run / f"processed/sim/{controller}.parquet")

@@ -179,7 +179,8 @@ def test_robot_table_regions_add_up_and_compare_against_servo():
     assert all_rows.loc["servo", "hits_minus_servo"] == 0
     # a confidence-scaled controller is also compared with the paper's uncertainty-aware one: +4, one way
     oracle = all_rows.loc["confidence_scaled_oracle"]
-    assert oracle["hits_minus_uncertainty_aware"] == 4 and oracle["paper_ua_mcnemar_p"] == pytest.approx(0.125)
+    assert oracle["hits_minus_uncertainty_aware"] == 4
+    assert oracle["paper_ua_mcnemar_p"] == pytest.approx(0.125)
     assert 0 < oracle["paper_ua_diff_ci95_low"] <= 4 <= oracle["paper_ua_diff_ci95_high"]
     assert all_rows["hits_minus_uncertainty_aware"].isna().sum() == 3  # the others are not compared
     d = 100 * np.linspace(0.01, 0.3, 6)
@@ -210,8 +211,9 @@ def test_derived_accelerations_at_the_upright_arm_match_a_hand_computation():
 
 
 def test_controllers_come_from_the_registry():
-    assert controller_names(with_uncertainty=True) == list(CONTROLLERS)
+    assert controller_names(with_uncertainty=True, with_oracle=True) == list(CONTROLLERS)
     assert "confidence_scaled" in CONTROLLERS and "confidence_scaled" not in controller_names(False)
+    assert controller_names(True) == [c for c in CONTROLLERS if c != "confidence_scaled_oracle"]
     assert Controller.from_choice(Controller("c", 1.0, 0.5, confidence=(0.1, 0.2)).to_choice()) == \
         Controller("c", 1.0, 0.5, confidence=(0.1, 0.2))
     fixed, table = choose_controller("anticipatory", ROBOT, None, [], [], SimSettings(), [0.5], [0.5])
