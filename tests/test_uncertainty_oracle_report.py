@@ -130,6 +130,21 @@ def test_far_hitters_oracles_are_mirrored_and_hits_match_their_shot_within_a_fra
     assert (ro.by_frame_table(joined)["coverage_q05_q95"] == 1).all()
 
 
+def test_the_oracle_as_an_uncertainty_table_covers_every_held_out_row():
+    """The oracle-driven controller's table: calibration and test rows alike, the oracle's std (mirrored
+    interval) where a shot matched, an infinite uncertainty where none did."""
+    oracle = _oracle(3)
+    dataset, pred = _hits(oracle, "s00", [0, 0, 3 * FRAME_NS], ["near", "far", "near"])
+    dataset["split"] = ["calibration", "test", "test"]
+    pred["split"] = pred["rally"].map(dict(zip(dataset["rally"], dataset["split"], strict=True)))
+    table = ro.oracle_uncertainty(dataset, pred, {"s00": oracle})
+    assert len(table) == 3 * len(FRAMES) and set(table["split"]) == {"calibration", "test"}
+    matched = table[table["rally"] < 102]
+    assert np.allclose(matched["uncertainty"], matched["oracle_std_x"]) and (matched["std"] > 0).all()
+    assert (matched["lower"] < matched["upper"]).all()
+    assert np.isinf(table.loc[table["rally"] == 102, "uncertainty"]).all()  # 3 frames off: no shot
+
+
 @given(offset=st.integers(-3 * FRAME_NS, 3 * FRAME_NS))
 def test_a_hit_matches_its_shot_exactly_when_within_one_frame(offset):
     oracle = _oracle(2)
