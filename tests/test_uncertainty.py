@@ -318,3 +318,68 @@ def test_a_registered_toy_estimator_reaches_the_uncertainty_table():
     assert list(summary["estimator"]) == [*ESTIMATORS, "toy_half"]
     with pytest.raises(ValueError, match="'ensemble' is already registered"):
         register(type("Again", (Estimator,), {"name": "ensemble"}))
+
+
+class _KnownHetero:
+    """A stand-in for the fitted heteroscedastic head: every row's true noise std, no bias."""
+
+    name = "hetero"
+
+    def __init__(self, std):
+        self.std = std
+
+    def mean_std(self, hits):
+        return hits.pred, self.std
+
+
+N_CAL_HITS = 76  # the calibration hits of the default run (README)
+FRAMES_USED = np.array([20, 10, 1])  # a few frames before the hit keep the trials fast
+
+
+def _exchangeable_hits(rng, n_train=40, n_test=60):
+    """Training, calibration and test hits of one draw: residuals N(0, std) with a per-hit difficulty and
+    a per-frame scale, the ensemble's spread a noisy guess of the std, the ball's speed random."""
+    n = n_train + N_CAL_HITS + n_test
+    k = len(FRAMES_USED)
+    std = (rng.lognormal(0, 0.6, (n, 1)) * np.array([0.3, 0.2, 0.1])).ravel()
+    pred = rng.normal(0, 0.3, n * k)
+    y = pred + std * rng.standard_normal(n * k)
+    split = np.repeat(np.select([np.arange(n) < n_train, np.arange(n) < n_train + N_CAL_HITS],
+                                ["train", "calibration"], "test"), k)
+    rows = pd.DataFrame({"split": split, "hit_index": np.repeat(np.arange(n), k),
+                         "frames_before_hit": np.tile(FRAMES_USED, n), "strike_x": y, "strike_x_pred": pred,
+                         "abs_error": np.abs(y - pred)})
+    features = np.zeros((n * k, 2 * 39 + 1))
+    features[:, 75] = rng.uniform(3, 12, n * k)  # the ball's speed along x: mondrian_speed's context
+    spread = std * rng.lognormal(0, 0.3, n * k)
+    return Hits(rows, features, np.zeros((n, 1, 39)), np.stack([pred - spread, pred + spread])), std
+
+
+@pytest.mark.parametrize("name", ["conformal", "mondrian", "ensemble_time", "mondrian_speed",
+                                  "normalised_ensemble", "normalised_hetero", "cqr_hetero", "clear"])
+def test_every_conformal_estimator_covers_within_the_finite_sample_bound(name):
+    """The registered estimators themselves (the learned parts replaced by known values) over repeated
+    calibration draws of the default run's size: per frame (pooled over frames for the two with one
+    quantile for all frames), 1 - alpha <= E[coverage] <= 1 - alpha +
+    1/(n + 1), n the calibration hits of the estimator's quantile (half for CLEAR's scale; a third for the
+    speed terciles, whose cells hold ~25 calibration hits: the bound is taken at 19), widened by 4 standard
+    errors over the trials."""
+    from pingpong.uncertainty import estimators as est
+
+    rng = np.random.default_rng(11)
+    per_frame = name not in ("conformal", "normalised_ensemble")  # those two: one quantile for all frames
+    trials, coverage = 150, {f: [] for f in (FRAMES_USED if per_frame else ["all"])}
+    for _ in range(trials):
+        hits, std = _exchangeable_hits(rng)
+        fitted = {"ensemble": est.Ensemble(SETTINGS), "hetero": _KnownHetero(std)}
+        estimator = REGISTRY[name](SETTINGS)
+        estimator.fit(hits, fitted, rng)
+        band = estimator.apply(hits)
+        inside = (band.lower <= hits.y) & (hits.y <= band.upper)
+        for f in coverage:
+            coverage[f].append(inside[(hits.split == "test") & ((hits.frames == f) | (f == "all"))].mean())
+    n_cal = {"clear": N_CAL_HITS - N_CAL_HITS // 2, "mondrian_speed": 19}.get(name, N_CAL_HITS)
+    for f, share in coverage.items():
+        share = np.array(share)
+        slack = 4 * share.std() / math.sqrt(trials)
+        assert 1 - ALPHA - slack <= share.mean() <= 1 - ALPHA + 1 / (n_cal + 1) + slack, (name, f)
