@@ -61,12 +61,13 @@ def predict_error(net: AnticipationNet, X: np.ndarray, strike_pred: np.ndarray) 
     return torch.exp(prediction_frames(net(head_inputs(X, strike_pred)))[..., 0]).double().numpy()
 
 
-def save(net: AnticipationNet, stem, prov: Provenance) -> None:
-    save_model(net.state_dict(), {"architecture": net.architecture}, stem, HEAD_SCHEMA, prov)
+def save(net: AnticipationNet, stem, prov: Provenance, schema: Schema = HEAD_SCHEMA) -> None:
+    """A head on the anticipation stack (this or another, under its schema): weights + architecture."""
+    save_model(net.state_dict(), {"architecture": net.architecture}, stem, schema, prov)
 
 
-def load(stem) -> AnticipationNet:
-    tensors, hparams = load_model(stem, HEAD_SCHEMA)
+def load(stem, schema: Schema = HEAD_SCHEMA) -> AnticipationNet:
+    tensors, hparams = load_model(stem, schema)
     net = AnticipationNet(**hparams["architecture"])
     net.load_state_dict(tensors)
     return net.eval()

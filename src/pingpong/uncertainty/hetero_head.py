@@ -16,9 +16,10 @@ import math
 import numpy as np
 import torch
 
-from pingpong.common.artifacts import Provenance, Schema, load_model, save_model
+from pingpong.common.artifacts import Provenance, Schema
 from pingpong.frames import N_INPUT, N_PRED_FRAMES
 from pingpong.learning.models import AnticipationNet, prediction_frames
+from pingpong.uncertainty import error_head
 from pingpong.uncertainty.error_head import N_BATCHES, head_inputs
 
 # The log variance is softly bounded to std 5 mm .. 3 m. Without a bound a frame whose training
@@ -101,11 +102,8 @@ def predict_hetero(net: AnticipationNet, X: np.ndarray,
 
 
 def save(net: AnticipationNet, stem, prov: Provenance) -> None:
-    save_model(net.state_dict(), {"architecture": net.architecture}, stem, HEAD_SCHEMA, prov)
+    error_head.save(net, stem, prov, HEAD_SCHEMA)
 
 
 def load(stem) -> AnticipationNet:
-    tensors, hparams = load_model(stem, HEAD_SCHEMA)
-    net = AnticipationNet(**hparams["architecture"])
-    net.load_state_dict(tensors)
-    return net.eval()
+    return error_head.load(stem, HEAD_SCHEMA)
