@@ -56,6 +56,7 @@ def test_an_estimator_that_knows_the_oracle_meets_every_bar_and_noise_does_not()
     good, bad = verdict.loc["knows_the_oracle"], verdict.loc["noise"]
     assert good["meets_all"] and good["spearman_oracle_1_20"] > 0.9 and good["gain_low95"] > 0.5
     assert good["oracle_low95"] > 0.9 and bad["oracle_high95"] < 0.3
+    assert good["spearman_error"] > 0.5 and good["error_low95"] > 0.4  # its std also ranks the errors
     assert not bad["recovers_oracle"] and not bad["meets_all"] and abs(bad["spearman_oracle_1_20"]) < 0.1
     assert verdict.loc["conformal", "width_vs_conformal"] == 1.0 and not verdict.loc["conformal", "narrower"]
     diagnostics = {"member_error_spearman_within_frame": 0.5}

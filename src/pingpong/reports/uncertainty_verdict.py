@@ -33,8 +33,7 @@ def hit_frame_matrix(table: pd.DataFrame, column: str, frames=None) -> np.ndarra
     t = table[table["split"] == "test"]
     if frames is not None:
         t = t[t["frames_before_hit"].isin(frames)]
-    return t.pivot_table(index=HIT_KEYS, columns="frames_before_hit", values=column,
-                         dropna=False).to_numpy(float)
+    return t.pivot(index=HIT_KEYS, columns="frames_before_hit", values=column).to_numpy(float)
 
 
 def _row_spearman(u: np.ndarray, e: np.ndarray) -> np.ndarray:

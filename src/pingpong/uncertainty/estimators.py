@@ -200,18 +200,22 @@ class EnsembleTime(Estimator):
 @register
 class MondrianSpeed(Estimator):
     """Mondrian conformal by frame and by a context the inputs reveal: the tercile of the incoming
-    ball's speed at that frame (the time pressure a fast ball puts on the player; tercile edges from
-    the training rows), one quantile of |y - y_hat| per (frame, tercile) cell."""
+    ball's speed at that frame (the time pressure a fast ball puts on the player; each frame's tercile
+    edges from its training rows, so every cell holds about a third of the calibration hits), one
+    quantile of |y - y_hat| per (frame, tercile) cell."""
 
     name = "mondrian_speed"
 
     def _cells(self, hits):
         speed = np.linalg.norm(hits.features[:, BALL_RATE], axis=1)
-        return hits.frames * N_SPEED_BINS + np.searchsorted(self.edges, speed)
+        tercile = [np.searchsorted(self.edges[f], s) for f, s in zip(hits.frames, speed, strict=True)]
+        return hits.frames * N_SPEED_BINS + np.asarray(tercile, int)
 
     def fit(self, hits, fitted, rng):
-        speed = np.linalg.norm(hits.features[hits.train, BALL_RATE], axis=1)
-        self.edges = np.quantile(speed, np.arange(1, N_SPEED_BINS) / N_SPEED_BINS)
+        speed = np.linalg.norm(hits.features[:, BALL_RATE], axis=1)
+        levels = np.arange(1, N_SPEED_BINS) / N_SPEED_BINS
+        self.edges = {int(f): np.quantile(speed[hits.train & (hits.frames == f)], levels)
+                      for f in np.unique(hits.frames)}
         cal = hits.calibration
         self.by_cell = mondrian_quantiles(hits.abs_error[cal], self._cells(hits)[cal], self.alpha,
                                           hits.groups[cal])
@@ -221,11 +225,11 @@ class MondrianSpeed(Estimator):
         return _interval(hits.pred, np.array([self.by_cell.get(c, np.inf) for c in self._cells(hits)]))
 
     def state(self):
-        return {"speed_edges_m_s": self.edges.tolist(),
+        return {"speed_edges_m_s": {str(f): e.tolist() for f, e in self.edges.items()},
                 "quantile_by_cell": {str(c): q for c, q in self.by_cell.items()}}
 
     def restore(self, state, model_stem, fitted):
-        self.edges = np.asarray(state["speed_edges_m_s"])
+        self.edges = {int(f): np.asarray(e) for f, e in state["speed_edges_m_s"].items()}
         self.by_cell = {int(c): q for c, q in state["quantile_by_cell"].items()}
 
 

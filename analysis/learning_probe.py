@@ -1,0 +1,73 @@
+"""How much of the strike point the inputs carry, against what the configured net learns from them.
+
+Out-of-fold median strike-point errors on the training hits of processed/dataset.parquet (the dataset's own
+5 folds), at 30, 20, 10, 5, 1 and 0 frames before the hit, for
+- the selected configuration (processed/models/selection.json) over several seeds, each seed alone and
+  their average;
+- a ridge probe fitted per frame on that frame's 39 inputs, their change over 1 and 3 frames, and the same
+  again times the stroke side (forehand +1, backhand -1: the sign of the paddle face's y), standardised.
+Run from the repository root after the select_model rule:
+`.venv/bin/python analysis/learning_probe.py [seeds]`.
+"""
+
+import json
+import sys
+
+import numpy as np
+import torch
+import yaml
+
+from pingpong.common.artifacts import read_table
+from pingpong.curation.dataset import dataset_arrays
+from pingpong.curation.schemas import DATASET
+from pingpong.learning.cv import make_net
+from pingpong.learning.train import predict, strike_points, train
+
+FRAMES_SHOWN = (30, 20, 10, 5, 1, 0)
+PADDLE_FACE_Y = 24 + 3 + 5  # r12 of the paddle's rotation: its face normal's y (mirrored table frame)
+
+
+def ridge_per_frame(X, strike, train_rows, lam=10.0) -> np.ndarray:
+    """(rows not in train_rows, 31) ridge predictions, one fit per prediction frame."""
+    out = []
+    for i in range(X.shape[1] - 31, X.shape[1]):
+        f = np.concatenate([X[:, i], X[:, i] - X[:, i - 1], X[:, i] - X[:, i - 3]], axis=1)
+        side = np.sign(-X[:, i, PADDLE_FACE_Y])[:, None]
+        f = np.concatenate([f, side * f, side], axis=1)
+        f = (f - f[train_rows].mean(0)) / (f[train_rows].std(0) + 1e-9)
+        f = np.concatenate([f, np.ones((len(f), 1))], axis=1)
+        a = f[train_rows]
+        w = np.linalg.solve(a.T @ a + lam * np.eye(a.shape[1]), a.T @ strike[train_rows])
+        out.append(f[~train_rows] @ w)
+    return np.stack(out, axis=1)
+
+
+def main(seeds: int) -> None:
+    torch.set_num_threads(1)
+    batch_size = yaml.safe_load(open("config/config.yaml"))["training"]["batch_size"]
+    cell = json.loads(open("processed/models/selection.json").read())["config"]
+    dataset = read_table("processed/dataset.parquet", DATASET)
+    train_part = dataset[dataset["split"] == "train"]
+    X, Y = dataset_arrays(train_part)
+    folds = train_part["fold"].to_numpy()
+    strike = (Y[:, 1] * -1.40 + Y[:, 2]).astype(float)
+    preds = {name: np.zeros((len(X), 31)) for name in ["ridge", *(f"net seed {s}" for s in range(seeds))]}
+    for fold in np.unique(folds):
+        val = folds == fold
+        preds["ridge"][val] = ridge_per_frame(X, strike, ~val)
+        for seed in range(seeds):
+            net = make_net(cell, seed)
+            train(net, X[~val], Y[~val], X[val], Y[val], cell["lr"], batch_size=batch_size, seed=seed,
+                  device="cpu", progress=False)
+            preds[f"net seed {seed}"][val] = strike_points(predict(net, X[val]))
+    preds["net, seeds averaged"] = np.mean([preds[f"net seed {s}"] for s in range(seeds)], axis=0)
+    print(f"{len(X)} training hits, out of fold; median |strike error| cm at frames {FRAMES_SHOWN}; "
+          f"the training mean: {100 * np.median(np.abs(strike - strike.mean())):.1f} cm")
+    for name, p in preds.items():
+        med = 100 * np.median(np.abs(p - strike[:, None]), axis=0)
+        cols = " ".join(f"{med[30 - f]:5.1f}" for f in FRAMES_SHOWN)
+        print(f"{name:22s} {cols}   1/10 frames: {med[29] / med[20]:.2f}")
+
+
+if __name__ == "__main__":
+    main(int(sys.argv[1]) if len(sys.argv) > 1 else 3)
