@@ -92,7 +92,8 @@ def main(ctx):
     estimators_only = {name: t for name, t in tables.items() if name != ORACLE}
     rng = rng_for(ctx.params["seed"], "uncertainty_verdict")
     verdict = verdict_table(estimators_only, summary, coverage, rng)
-    text = verdict_text(verdict, summary, fitted["diagnostics"], coverage) + "\n\n" + window_text(by_frame)
+    text = verdict_text(verdict, summary, fitted["diagnostics"], coverage) + "\n\n" + window_text(
+        by_frame[by_frame["estimator"] != ORACLE])
     verdict_caption = VERDICT_CAPTION.format(
         verdict=text, coverage=coverage, n_boot=N_BOOTSTRAP, oracle_bar=ORACLE_BAR, slack=COVERAGE_SLACK,
         tercile=MIN_TERCILE_COVERAGE, narrower=NARROWER)
