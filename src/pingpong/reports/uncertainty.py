@@ -215,11 +215,14 @@ def plot_spearman_oracle_by_frame(by_frame: pd.DataFrame, path) -> None:
     """Per frame before the hit, each estimator's within-frame Spearman with the oracle std, and the
     oracle's own Spearman with the model's error (the most any uncertainty could rank the errors)."""
     fig, ax = plt.subplots(figsize=(7, 4.5))
+    drawn = []  # an estimator that ranks like one drawn before it (a conformal scaling of it) is left out
     for name, g in by_frame.groupby("estimator", sort=False):
+        rho = g["spearman_oracle"].to_numpy(float)
         if name == ORACLE:
             ax.plot(-g["frames_before_hit"], g["spearman"], "k-", lw=2, label="oracle std vs |error|")
-        elif g["spearman_oracle"].notna().any():
-            ax.plot(-g["frames_before_hit"], g["spearman_oracle"], marker=".",
+        elif np.isfinite(rho).any() and not any(np.allclose(rho, d, equal_nan=True) for d in drawn):
+            drawn.append(rho)
+            ax.plot(-g["frames_before_hit"], rho, marker=".",
                     linestyle="-" if name in PAPER_ESTIMATORS else ":", label=name)
     if not by_frame["spearman_oracle"].notna().any():
         ax.text(0.5, 0.5, "no strike oracle (not a twin run)", transform=ax.transAxes, ha="center")
