@@ -28,19 +28,18 @@ def head_inputs(X: np.ndarray, strike_pred: np.ndarray) -> torch.Tensor:
     return torch.from_numpy(np.concatenate([X, channel], axis=-1))
 
 
-def fit_error_head(X: np.ndarray, strike_pred: np.ndarray, abs_errors: np.ndarray,
-                   rng: np.random.Generator, *, hidden: int = 16, epochs: int = 20, lr: float = 3e-3,
-                   dropout: float = 0.2, weight_decay: float = 1e-3) -> AnticipationNet:
-    """Train on hits X (N, T, 39) with the prediction (N, 31) and its absolute error (N, 31), m."""
-    if not np.isfinite(abs_errors).all() or np.shape(abs_errors) != np.shape(strike_pred):
-        raise ValueError(f"fit_error_head: errors {np.shape(abs_errors)} must be finite and shaped like the "
-                         f"predictions {np.shape(strike_pred)}")
+def train_head(X: np.ndarray, strike_pred: np.ndarray, n_output: int, loss_of, rng: np.random.Generator, *,
+               hidden: int, epochs: int, lr: float = 3e-3, dropout: float = 0.2,
+               weight_decay: float = 1e-3) -> AnticipationNet:
+    """A head on the anticipation stack (one GRU layer, velocity inputs, `n_output` outputs per frame) read
+    from head_inputs(X, strike_pred), trained with AdamW on N_BATCHES minibatches of hits per epoch to
+    minimise loss_of(outputs (B, 31, n_output) at the prediction frames, the batch's hit indices);
+    seeded from rng (weights, minibatch order, dropout masks), torch's global stream left as it was."""
     seed = int(rng.integers(2**31))
     net = AnticipationNet("gru", n_input=N_INPUT + 1, rnn_hidden=hidden, rnn_layers=1, mlp_hidden=hidden,
-                          mlp_layers=1, dropout=dropout, velocity=True, n_output=1, seed=seed)
+                          mlp_layers=1, dropout=dropout, velocity=True, n_output=n_output, seed=seed)
     x = head_inputs(X, strike_pred)
     net.normaliser.fit(net.features(x))
-    target = torch.from_numpy(np.log(np.asarray(abs_errors, np.float32) + ERROR_FLOOR))
     optimiser = torch.optim.AdamW(net.parameters(), lr=lr, weight_decay=weight_decay)
     shuffle = np.random.default_rng(seed)  # minibatch order
     with torch.random.fork_rng(devices=[]):
@@ -48,11 +47,23 @@ def fit_error_head(X: np.ndarray, strike_pred: np.ndarray, abs_errors: np.ndarra
         net.train()
         for _ in range(epochs):
             for batch in np.array_split(shuffle.permutation(len(x)), min(N_BATCHES, len(x))):
-                loss = (prediction_frames(net(x[batch]))[..., 0] - target[batch]).abs().mean()
+                loss = loss_of(prediction_frames(net(x[batch])), batch)
                 optimiser.zero_grad(set_to_none=True)
                 loss.backward()
                 optimiser.step()
     return net.eval()
+
+
+def fit_error_head(X: np.ndarray, strike_pred: np.ndarray, abs_errors: np.ndarray,
+                   rng: np.random.Generator, *, hidden: int = 16, epochs: int = 20, lr: float = 3e-3,
+                   dropout: float = 0.2, weight_decay: float = 1e-3) -> AnticipationNet:
+    """Train on hits X (N, T, 39) with the prediction (N, 31) and its absolute error (N, 31), m."""
+    if not np.isfinite(abs_errors).all() or np.shape(abs_errors) != np.shape(strike_pred):
+        raise ValueError(f"fit_error_head: errors {np.shape(abs_errors)} must be finite and shaped like the "
+                         f"predictions {np.shape(strike_pred)}")
+    target = torch.from_numpy(np.log(np.asarray(abs_errors, np.float32) + ERROR_FLOOR))
+    return train_head(X, strike_pred, 1, lambda out, batch: (out[..., 0] - target[batch]).abs().mean(), rng,
+                      hidden=hidden, epochs=epochs, lr=lr, dropout=dropout, weight_decay=weight_decay)
 
 
 @torch.no_grad()

@@ -17,10 +17,10 @@ import numpy as np
 import torch
 
 from pingpong.common.artifacts import Provenance, Schema
-from pingpong.frames import N_INPUT, N_PRED_FRAMES
+from pingpong.frames import N_PRED_FRAMES
 from pingpong.learning.models import AnticipationNet, prediction_frames
 from pingpong.uncertainty import error_head
-from pingpong.uncertainty.error_head import N_BATCHES, head_inputs
+from pingpong.uncertainty.error_head import head_inputs
 
 # The log variance is softly bounded to std 5 mm .. 3 m. Without a bound a frame whose training
 # residuals happen to be tiny drives its variance towards 0 and the 1/var term of the loss explodes on
@@ -71,24 +71,13 @@ def fit_hetero_head(X: np.ndarray, strike_pred: np.ndarray, residuals: np.ndarra
     """Train on hits X (N, T, 39) with the prediction (N, 31) and its out-of-fold residual
     y - y_hat (N, 31), m; outputs per frame: residual mean and raw (unbounded) log variance."""
     _check(X, strike_pred, residuals)
-    seed = int(rng.integers(2**31))
-    net = AnticipationNet("gru", n_input=N_INPUT + 1, rnn_hidden=hidden, rnn_layers=1, mlp_hidden=hidden,
-                          mlp_layers=1, dropout=dropout, velocity=True, n_output=2, seed=seed)
-    x = head_inputs(X, strike_pred)
-    net.normaliser.fit(net.features(x))
     target = torch.from_numpy(np.asarray(residuals, np.float32))
-    optimiser = torch.optim.AdamW(net.parameters(), lr=lr, weight_decay=weight_decay)
-    shuffle = np.random.default_rng(seed)  # minibatch order
-    with torch.random.fork_rng(devices=[]):
-        torch.manual_seed(seed)  # dropout masks
-        net.train()
-        for _ in range(epochs):
-            for batch in np.array_split(shuffle.permutation(len(x)), min(N_BATCHES, len(x))):
-                loss = beta_nll_loss(*_mean_log_var(net, x[batch]), target[batch], beta)
-                optimiser.zero_grad(set_to_none=True)
-                loss.backward()
-                optimiser.step()
-    return net.eval()
+
+    def loss_of(out, batch):
+        return beta_nll_loss(out[..., 0], _bounded_log_var(out[..., 1]), target[batch], beta)
+
+    return error_head.train_head(X, strike_pred, 2, loss_of, rng, hidden=hidden, epochs=epochs, lr=lr,
+                                 dropout=dropout, weight_decay=weight_decay)
 
 
 @torch.no_grad()
