@@ -135,7 +135,8 @@ REPORT_TABLES = {
     "perception": ["sync", *(["perception_accuracy"] if TWIN_ONLY else [])],
     "curation": ["curation", *(["curation_accuracy"] if TWIN_ONLY else [])],
     "learning": ["cv_results", "strike_error", "strike_error_by_frame"],
-    "uncertainty": ["uncertainty", "uncertainty_verdict", "uncertainty_by_frame", "uncertainty_oracle"],
+    "uncertainty": ["uncertainty", "uncertainty_verdict", "uncertainty_by_frame", "uncertainty_path_band",
+                    "uncertainty_oracle"],
     "robot": ["robot", "robot_limits", "robot_ablation", "servo_accuracy"],
 }
 
