@@ -10,8 +10,9 @@ The models that need torch or scipy are imported on first use (Learned.models): 
 imports this module for the names alone (the code hash still follows those imports).
 """
 
+from statistics import NormalDist
+
 import numpy as np
-from scipy import stats
 
 from pingpong.frames import N_INPUT
 from pingpong.uncertainty.conformal import (
@@ -20,7 +21,6 @@ from pingpong.uncertainty.conformal import (
     mondrian_quantiles,
     normalised_scores,
 )
-from pingpong.uncertainty.metrics import winkler_score
 from pingpong.uncertainty.registry import Band, Estimator, Hits, register
 from pingpong.uncertainty.time_to_hit import fit_trend, trend
 
@@ -342,7 +342,7 @@ class Hetero(Learned):
 
     def apply(self, hits):
         centre, std = self.mean_std(hits)
-        half = stats.norm.ppf(1 - self.alpha / 2) * std
+        half = NormalDist().inv_cdf(1 - self.alpha / 2) * std
         return Band(std, centre - half, centre + half, std=std)
 
 
@@ -392,7 +392,7 @@ class CqrHetero(OnHetero):
     name = "cqr_hetero"
 
     def _quantiles(self, centre, std):
-        half = stats.norm.ppf(1 - self.alpha / 2) * std
+        half = NormalDist().inv_cdf(1 - self.alpha / 2) * std
         return centre - half, centre + half
 
     def scores(self, y, centre, std):
@@ -425,6 +425,8 @@ class Clear(Estimator):
         return mondrian_quantiles(scores[rows], hits.frames[rows], self.alpha, hits.groups[rows])
 
     def _winkler(self, hits, rows, lam, gamma):
+        from pingpong.uncertainty.metrics import winkler_score  # scipy: not on the workflow's import path
+
         centre, aleatoric, epistemic = self._parts(hits)
         half = np.array([gamma[f] for f in hits.frames[rows]]) * (aleatoric + lam * epistemic)[rows]
         return winkler_score(hits.y[rows], centre[rows] - half, centre[rows] + half, self.alpha)

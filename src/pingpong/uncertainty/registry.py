@@ -9,15 +9,15 @@ The workflow, the config's enums, the reports and the robot read the names from 
 `pingpong.uncertainty.names`), so adding an estimator touches one module: `pingpong.uncertainty.estimators`
 (docs/architecture.md, "Registries").
 
-Light on purpose (numpy, pandas, scipy.stats and the config's helpers only): the Snakefile imports it.
+Light on purpose (numpy, pandas and the config's helpers only): the Snakefile imports it.
 """
 
 from dataclasses import dataclass
+from statistics import NormalDist
 from typing import ClassVar
 
 import numpy as np
 import pandas as pd
-from scipy import stats
 
 from pingpong.common.config import Settings
 
@@ -82,7 +82,7 @@ class Band:
         if self.std is not None:
             return self.std
         if self.lower is not None:
-            return (self.upper - self.lower) / 2 / stats.norm.ppf(0.5 + coverage / 2)
+            return (self.upper - self.lower) / 2 / NormalDist().inv_cdf(0.5 + coverage / 2)
         return self.uncertainty * np.sqrt(np.pi / 2)
 
 
