@@ -18,8 +18,7 @@ from pingpong.curation.schemas import DATASET
 from pingpong.learning.models import AnticipationNet, prediction_frames
 from pingpong.learning.schemas import PREDICTIONS
 from pingpong.reports.uncertainty import ORACLE_FRAMES
-from pingpong.reports.uncertainty_oracle import HIT_KEYS, join_test_hits
-from pingpong.twin import truth
+from pingpong.reports.uncertainty_oracle import HIT_KEYS, join_test_hits, read_oracles
 from pingpong.uncertainty.metrics import spearman, within_frames
 
 SETTINGS = ((16, 30), (32, 60))  # (GRU width, epochs)
@@ -29,7 +28,7 @@ def oracle_matrix(dataset: pd.DataFrame) -> np.ndarray:
     """(hits, 31) oracle std of every dataset hit at t = -30 .. 0 (NaN where no twin shot matched)."""
     predictions = read_table("processed/predictions.parquet", PREDICTIONS)
     sessions = sorted(dataset["session"].unique())
-    oracles = {s: read_table(f"raw/twin_truth/{s}/strike_oracle.parquet", truth.ORACLE) for s in sessions}
+    oracles = read_oracles(sessions, [f"raw/twin_truth/{s}/strike_oracle.parquet" for s in sessions])
     rows = join_test_hits(dataset, predictions, oracles, splits=("train", "calibration", "test"))
     at = dataset[HIT_KEYS].reset_index().merge(rows[[*HIT_KEYS, "frames_before_hit", "oracle_std_x"]])
     out = np.full((len(dataset), 31), np.nan)

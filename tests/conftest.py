@@ -1,6 +1,9 @@
 """Test settings: hypothesis derandomised so that CI runs are repeatable (same examples every run),
 and the small twin run that the stage tests share."""
 
+import math
+
+import numpy as np
 import pytest
 import yaml
 from hypothesis import settings
@@ -21,3 +24,10 @@ def tiny_run(tmp_path_factory):
     root = copy_checkout(tmp_path_factory.mktemp("tiny_run"))
     snakemake(root, configfile=TINY_CONFIG)  # rule all
     return root
+
+
+def coverage_bounds(n_cal: int, coverages: np.ndarray, alpha: float) -> tuple[float, float]:
+    """Split conformal with n exchangeable calibration scores (no ties): 1 - alpha <= E[coverage] <=
+    1 - alpha + 1/(n + 1); widened by 4 standard errors of the mean coverage over the trials given."""
+    slack = 4 * np.std(coverages) / math.sqrt(len(coverages))
+    return 1 - alpha - slack, 1 - alpha + 1 / (n_cal + 1) + slack

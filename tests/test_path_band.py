@@ -3,10 +3,10 @@ bound where the pointwise band does not, path_x and the table against hand-compu
 the state round trip and clear failures."""
 
 import json
-import math
 
 import numpy as np
 import pytest
+from conftest import coverage_bounds
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -28,13 +28,6 @@ ALPHA = 0.1
 TRIALS = 200  # calibration draws; each trial's coverage is measured on its own test hits
 FRAMES = np.array([0, 30])  # frames before the hit
 NOISE_M = np.array([0.02, 0.10])  # residual scale per frame: the error grows with the time before the hit
-
-
-def _bounds(n_cal: int, spread: np.ndarray) -> tuple[float, float]:
-    """As tests/test_uncertainty.py: 1 - alpha <= E[coverage] <= 1 - alpha + 1/(n + 1) (no ties), widened by
-    4 standard errors of the mean over the trials."""
-    slack = 4 * spread.std() / math.sqrt(len(spread))
-    return 1 - ALPHA - slack, 1 - ALPHA + 1 / (n_cal + 1) + slack
 
 
 def _hits(rng, n_hits: int) -> tuple:
@@ -69,11 +62,11 @@ def test_simultaneous_band_covers_the_whole_path_where_the_pointwise_band_does_n
         pointwise_at_y.append([inside[test[2] == f].mean(axis=0) for f in FRAMES])
     whole, pointwise_whole, pointwise_at_y = map(np.array, (whole, pointwise_whole, pointwise_at_y))
     for i in range(len(FRAMES)):
-        low, high = _bounds(n_cal, whole[:, i])
+        low, high = coverage_bounds(n_cal, whole[:, i], ALPHA)
         assert low <= whole[:, i].mean() <= high
         assert pointwise_whole[:, i].mean() < 1 - ALPHA - 0.05  # each y at 1 - alpha, all at once less often
         for j in range(len(Y_BAND)):
-            low, high = _bounds(n_cal, pointwise_at_y[:, i, j])
+            low, high = coverage_bounds(n_cal, pointwise_at_y[:, i, j], ALPHA)
             assert low <= pointwise_at_y[:, i, j].mean() <= high
 
 

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import coverage_bounds
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -46,20 +47,13 @@ ALPHA = 0.1
 TRIALS = 400  # calibration draws; each trial's coverage is measured on its own test points
 
 
-def _bounds(n_cal: int, spread: np.ndarray) -> tuple[float, float]:
-    """Split conformal with n exchangeable calibration scores (no ties): 1 - alpha <= E[coverage] <=
-    1 - alpha + 1/(n + 1); widened by 4 standard errors of the mean over TRIALS trials."""
-    slack = 4 * spread.std() / math.sqrt(len(spread))
-    return 1 - ALPHA - slack, 1 - ALPHA + 1 / (n_cal + 1) + slack
-
-
 def test_split_conformal_coverage_within_the_finite_sample_bound():
     rng = np.random.default_rng(0)
     n_cal, n_test = 50, 200
     errors = np.abs(rng.standard_t(3, size=(TRIALS, n_cal + n_test)))  # heavy-tailed |y - y_hat|
     q = np.array([conformal_quantile(e[:n_cal], ALPHA) for e in errors])
     covered = (errors[:, n_cal:] <= q[:, None]).mean(axis=1)
-    low, high = _bounds(n_cal, covered)
+    low, high = coverage_bounds(n_cal, covered, ALPHA)
     assert low <= covered.mean() <= high
     # with one score per hit the quantile is the ceil((1 - alpha)(n + 1))-th smallest
     assert q[0] == np.sort(errors[0, :n_cal])[math.ceil((1 - ALPHA) * (n_cal + 1)) - 1]
@@ -96,7 +90,7 @@ def test_mondrian_covers_every_frame_where_one_width_does_not():
         pooled.append((t <= conformal_quantile(c.ravel(), ALPHA)).mean(axis=1))
     per_frame, pooled = np.array(per_frame), np.array(pooled)
     for f in range(3):
-        low, high = _bounds(n_cal, per_frame[:, f])
+        low, high = coverage_bounds(n_cal, per_frame[:, f], ALPHA)
         assert low <= per_frame[:, f].mean() <= high
     assert pooled[:, 2].mean() < 0.8  # one width under-covers the hardest frame
 
@@ -115,7 +109,7 @@ def test_normalised_and_cqr_coverage_within_the_bound_and_adaptive_widths():
         q_cqr = conformal_quantile(cqr_scores(r[:n_cal], lo[:n_cal], hi[:n_cal]), ALPHA)
         cqr_cov.append(np.mean((lo[n_cal:] - q_cqr <= r[n_cal:]) & (r[n_cal:] <= hi[n_cal:] + q_cqr)))
     for covered in (np.array(norm_cov), np.array(cqr_cov)):
-        low, high = _bounds(n_cal, covered)
+        low, high = coverage_bounds(n_cal, covered, ALPHA)
         assert low <= covered.mean() <= high
     metrics = interval_metrics(np.zeros(n_test), -widths[0] / 2, widths[0] / 2)
     assert metrics["width_cv"] > 0.3 and metrics["coverage"] == 1.0
@@ -381,5 +375,5 @@ def test_every_conformal_estimator_covers_within_the_finite_sample_bound(name):
     n_cal = {"clear": N_CAL_HITS - N_CAL_HITS // 2, "mondrian_speed": 19}.get(name, N_CAL_HITS)
     for f, share in coverage.items():
         share = np.array(share)
-        slack = 4 * share.std() / math.sqrt(trials)
-        assert 1 - ALPHA - slack <= share.mean() <= 1 - ALPHA + 1 / (n_cal + 1) + slack, (name, f)
+        low, high = coverage_bounds(n_cal, share, ALPHA)
+        assert low <= share.mean() <= high, (name, f)

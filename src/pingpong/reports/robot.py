@@ -11,13 +11,13 @@ import numpy as np
 import pandas as pd
 from scipy.stats import binomtest
 
+from pingpong.robot.controllers import CONTROLLERS
 from pingpong.robot.flights import HIT_KEYS
 from pingpong.robot.model import N_BASE, Robot
 
 REGIONS = ("left", "centre", "right", "all")
 BASELINE = "servo"
 PAPER_CONTROLLER = "uncertainty_aware"  # what a controller that follows an uncertainty must beat
-CONFIDENCE_PREFIX = "confidence_scaled"  # the controllers that follow an uncertainty (estimator or oracle)
 # the paper's Tables 2-4 (223 test hits): per region (total, hits, end distance mean cm, 0.5 std cm)
 PAPER_TABLES = {
     "servo": {"right": (101, 60, 10.13, 4.38), "centre": (81, 60, 6.26, 1.93), "left": (41, 24, 12.82, 7.31),
@@ -73,23 +73,27 @@ def _paired_comparison(base: pd.Series, sim: pd.DataFrame, name: str, base_name:
     return int(ours.sum() - theirs.sum()), low, high, mcnemar_exact(theirs, ours)
 
 
+SERVO_COLUMNS = ("hits_minus_servo", "diff_ci95_low", "diff_ci95_high", "mcnemar_p")
+PAPER_COLUMNS = (f"hits_minus_{PAPER_CONTROLLER}", "paper_ua_diff_ci95_low", "paper_ua_diff_ci95_high",
+                 "paper_ua_mcnemar_p")
+
+
 def robot_table(sims: dict[str, pd.DataFrame], rng: np.random.Generator, n_boot: int = 2000) -> pd.DataFrame:
     """Tables 2-4 for every controller (SIM tables by name), with the comparison against 'servo' on the
     'all' rows: difference in hits, its bootstrap 95 % interval and the exact McNemar p-value; and, for the
-    controllers that follow an uncertainty (CONFIDENCE_PREFIX), the same against the paper's
-    uncertainty-aware controller (paper_ua_* columns), where it ran."""
-    bases = {"": BASELINE, "paper_ua_": PAPER_CONTROLLER}
+    controllers that follow an uncertainty (an estimator's or the oracle's), the same against the paper's
+    uncertainty-aware controller (PAPER_COLUMNS), where it ran."""
+    servo = sims[BASELINE].set_index(HIT_KEYS)["hit_ball"]
+    paper = sims[PAPER_CONTROLLER].set_index(HIT_KEYS)["hit_ball"] if PAPER_CONTROLLER in sims else None
     parts = []
     for name, sim in sims.items():
         table = region_rows(sim)
         table.insert(0, "controller", name)
-        for prefix, base_name in bases.items():
-            applies = base_name in sims and (not prefix or name.startswith(CONFIDENCE_PREFIX))
-            base = sims[base_name].set_index(HIT_KEYS)["hit_ball"] if applies else None
-            values = (_paired_comparison(base, sim, name, base_name, rng, n_boot) if applies
-                      else (np.nan,) * 4)
-            columns = (f"hits_minus_{base_name}" if prefix else "hits_minus_servo", f"{prefix}diff_ci95_low",
-                       f"{prefix}diff_ci95_high", f"{prefix}mcnemar_p")
+        compared = {SERVO_COLUMNS: _paired_comparison(servo, sim, name, BASELINE, rng, n_boot),
+                    PAPER_COLUMNS: (np.nan,) * 4}
+        if paper is not None and name in CONTROLLERS and CONTROLLERS[name].follows_uncertainty:
+            compared[PAPER_COLUMNS] = _paired_comparison(paper, sim, name, PAPER_CONTROLLER, rng, n_boot)
+        for columns, values in compared.items():
             for column, value in zip(columns, values, strict=True):
                 table[column] = np.where(table["region"] == "all", value, np.nan)
         parts.append(with_paper(table, name))

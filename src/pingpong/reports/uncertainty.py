@@ -8,6 +8,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from pingpong.common.atomic import atomic_path  # noqa: E402
+from pingpong.reports.uncertainty_oracle import as_uncertainty  # noqa: E402
 from pingpong.uncertainty.metrics import (  # noqa: E402
     FRACTIONS,
     ause,
@@ -52,9 +53,7 @@ def with_oracle(tables: dict[str, pd.DataFrame], oracle_rows: pd.DataFrame | Non
     if oracle_rows is not None and len(oracle_rows):
         base = out[next(iter(out))].drop(columns=["uncertainty", "lower", "upper", "std", "oracle_std"])
         rows = base.merge(oracle_rows[[*keys, "oracle_std_x", "oracle_q05_x", "oracle_q95_x"]], on=keys)
-        out[ORACLE] = rows.assign(uncertainty=rows["oracle_std_x"], std=rows["oracle_std_x"],
-                                  lower=rows["oracle_q05_x"], upper=rows["oracle_q95_x"],
-                                  oracle_std=rows["oracle_std_x"])
+        out[ORACLE] = as_uncertainty(rows).assign(oracle_std=rows["oracle_std_x"])
     return out
 
 

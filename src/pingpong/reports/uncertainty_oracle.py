@@ -14,8 +14,10 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from pingpong.common.artifacts import read_table  # noqa: E402
 from pingpong.common.atomic import atomic_path, write_text_atomic  # noqa: E402
 from pingpong.reports.curation_accuracy import nearest_shot  # noqa: E402
+from pingpong.twin import truth  # noqa: E402
 from pingpong.uncertainty.metrics import ause, spearman  # noqa: E402
 
 FINAL = "final"  # predictions' model: the selected configuration refit on the training part
@@ -195,6 +197,18 @@ def write_oracle_report(by_frame: pd.DataFrame, causes: pd.DataFrame, md_path, c
     write_text_atomic(csv_path, stacked[["table", *by_frame, *causes]].to_csv(index=False))
 
 
+def read_oracles(sessions, paths) -> dict[str, pd.DataFrame]:
+    """Each session's strike oracle (raw/twin_truth/{session}/strike_oracle.parquet), by session."""
+    return {s: read_table(path, truth.ORACLE) for s, path in zip(sessions, paths, strict=True)}
+
+
+def as_uncertainty(rows: pd.DataFrame, missing: float = np.nan) -> pd.DataFrame:
+    """Oracle rows with the uncertainty table's columns: uncertainty = std = the oracle std (`missing`
+    where the row has none), the interval its [q05, q95]."""
+    std = rows["oracle_std_x"].fillna(missing)
+    return rows.assign(uncertainty=std, std=std, lower=rows["oracle_q05_x"], upper=rows["oracle_q95_x"])
+
+
 def oracle_uncertainty(dataset: pd.DataFrame, predictions: pd.DataFrame,
                        oracles: dict[str, pd.DataFrame]) -> pd.DataFrame:
     """The oracle as an uncertainty table (uncertainty.schemas.UNCERTAINTY) of the calibration and test
@@ -207,6 +221,4 @@ def oracle_uncertainty(dataset: pd.DataFrame, predictions: pd.DataFrame,
                             [*keys, "split", "strike_x", "strike_x_pred", "abs_error"]]
     rows = final.merge(matched, on=keys, how="left", validate="one_to_one").sort_values(keys)
     # a hit no twin shot matched has no oracle: infinite uncertainty, so a confidence ramp never trusts it
-    std = rows["oracle_std_x"].fillna(np.inf)
-    return rows.assign(uncertainty=std, std=std, lower=rows["oracle_q05_x"], upper=rows["oracle_q95_x"]
-                       ).reset_index(drop=True)
+    return as_uncertainty(rows, missing=np.inf).reset_index(drop=True)

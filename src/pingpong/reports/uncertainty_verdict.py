@@ -62,34 +62,29 @@ def _with_interval(column: str, prefix: str, boot: np.ndarray) -> dict:
     return {column: boot[0], f"{prefix}_low95": low, f"{prefix}_high95": high}
 
 
-def _oracle_hits(tables: dict[str, pd.DataFrame]) -> np.ndarray:
-    """The test hits (rows of hit_frame_matrix) with an oracle std at every frame 1-20."""
-    first = next(iter(tables.values()))
-    return np.isfinite(hit_frame_matrix(first, "oracle_std", ORACLE_FRAMES)).all(axis=1)
-
-
 def verdict_table(tables: dict[str, pd.DataFrame], summary: pd.DataFrame, coverage: float,
                   rng: np.random.Generator, n_bootstrap: int = N_BOOTSTRAP) -> pd.DataFrame:
     """One row per estimator: its within-frame Spearman with the oracle std over frames 1-20 and with the
     error over every frame (95 % intervals), its gain over the paper's best ranking (paired), its
     intervals (reports.uncertainty.summary_table's) and the bars met. tables: with_oracle's, estimators
     only."""
-    keep = _oracle_hits(tables)
-    n = int(keep.sum())
-    resamples = np.vstack([np.arange(n), rng.integers(0, n, size=(n_bootstrap, n))]) if n else None
     first = next(iter(tables.values()))
+    oracle = hit_frame_matrix(first, "oracle_std", ORACLE_FRAMES)
+    keep = np.isfinite(oracle).all(axis=1)  # the test hits with an oracle std at every frame 1-20
+    oracle, n = oracle[keep], int(keep.sum())
+    resamples = np.vstack([np.arange(n), rng.integers(0, n, size=(n_bootstrap, n))]) if n else None
     E_all = hit_frame_matrix(first, "abs_error")
     resamples_all = np.vstack([np.arange(len(E_all)), rng.integers(0, len(E_all), (n_bootstrap, len(E_all)))])
-    oracle = hit_frame_matrix(first, "oracle_std", ORACLE_FRAMES)[keep]
     boot = {name: (bootstrap_within_frame(hit_frame_matrix(t, "uncertainty", ORACLE_FRAMES)[keep], oracle,
                                           resamples) if n else np.full(n_bootstrap + 1, np.nan),
                    bootstrap_within_frame(hit_frame_matrix(t, "uncertainty"), E_all, resamples_all))
             for name, t in tables.items()}
     paper = max((b for b in PAPER_BASELINES if b in boot), key=lambda b: boot[b][0][0], default=None)
-    conformal_width = summary.set_index("estimator").loc["conformal", "mean_width_cm"]
+    by_name = summary.set_index("estimator")
+    conformal_width = by_name.loc["conformal", "mean_width_cm"]
     rows = []
     for name, (rho_oracle, rho_error) in boot.items():
-        s = summary.set_index("estimator").loc[name]
+        s = by_name.loc[name]
         gain = rho_oracle - boot[paper][0] if paper else np.full_like(rho_oracle, np.nan)
         row = {"estimator": name, **_with_interval("spearman_oracle_1_20", "oracle", rho_oracle),
                **_with_interval("gain_over_paper", "gain", gain),

@@ -18,7 +18,7 @@ from pingpong.reports.uncertainty import (
     summary_table,
     with_oracle,
 )
-from pingpong.reports.uncertainty_oracle import join_test_hits
+from pingpong.reports.uncertainty_oracle import join_test_hits, read_oracles
 from pingpong.reports.uncertainty_verdict import (
     COVERAGE_SLACK,
     MIN_TERCILE_COVERAGE,
@@ -29,7 +29,6 @@ from pingpong.reports.uncertainty_verdict import (
     verdict_text,
     window_text,
 )
-from pingpong.twin import truth
 from pingpong.uncertainty.schemas import FITTED, UNCERTAINTY
 
 CAPTION = """Uncertainty of the strike-point prediction (final model) on the test hits, at {coverage:.0%}
@@ -77,9 +76,7 @@ def main(ctx):
     dataset, predictions = read_table(i.dataset, DATASET), read_table(i.predictions, PREDICTIONS)
     oracle_rows = None
     if i.oracle:  # twin runs: the strike oracle, mirrored like the hits
-        oracles = {s: read_table(path, truth.ORACLE) for s, path in zip(ctx.params["sessions"], i.oracle,
-                                                                      strict=True)}
-        oracle_rows = join_test_hits(dataset, predictions, oracles)
+        oracle_rows = join_test_hits(dataset, predictions, read_oracles(ctx.params["sessions"], i.oracle))
     tables = with_oracle(estimators, oracle_rows)
     coverage = ctx.params["coverage"]
     caption = CAPTION.format(coverage=coverage)

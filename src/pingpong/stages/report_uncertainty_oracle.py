@@ -38,7 +38,7 @@ uncertainty_oracle_std.png shows every frame."""
 
 def main(ctx):
     i, sessions = ctx.input, ctx.params["sessions"]
-    oracles = {s: read_table(i.oracle[k], truth.ORACLE) for k, s in enumerate(sessions)}
+    oracles = oracle_report.read_oracles(sessions, i.oracle)
     rows = pd.concat([oracle_report.oracle_with_causes(oracles[s], read_table(i.shots[k], truth.SHOTS,
                                                                               columns=CAUSE_COLUMNS))
                       .assign(session=s) for k, s in enumerate(sessions)], ignore_index=True)

@@ -10,8 +10,6 @@ The models that need torch or scipy are imported on first use (Learned.models): 
 imports this module for the names alone (the code hash still follows those imports).
 """
 
-from statistics import NormalDist
-
 import numpy as np
 
 from pingpong.frames import N_INPUT
@@ -34,6 +32,21 @@ def _interval(pred: np.ndarray, half: np.ndarray) -> Band:
     return Band(half, pred - half, pred + half)
 
 
+def _per_row(by_key: dict, keys) -> np.ndarray:
+    """Each row's value of a per-frame (or per-cell) table; a key calibration never reached has no
+    quantile: +inf, an infinite interval, as conformal_quantile gives for too few hits."""
+    return np.array([by_key.get(k, np.inf) for k in keys])
+
+
+def _to_json(by_key: dict) -> dict:
+    """A table keyed by frame (or cell) as JSON: string keys."""
+    return {str(k): v for k, v in by_key.items()}
+
+
+def _from_json(by_key: dict) -> dict:
+    return {int(k): v for k, v in by_key.items()}
+
+
 @register
 class Ensemble(Estimator):
     """The paper's: the std of the members' strike points (members refit with other seeds)."""
@@ -41,8 +54,7 @@ class Ensemble(Estimator):
     name, paper = "ensemble", True
 
     def apply(self, hits: Hits) -> Band:
-        spread = hits.ensemble_strike.std(axis=0, ddof=1)
-        return Band(spread, std=spread)
+        return Band(hits.ensemble_spread, std=hits.ensemble_spread)
 
 
 @register
@@ -159,13 +171,13 @@ class Mondrian(Estimator):
                                            hits.groups[cal])
 
     def apply(self, hits):
-        return _interval(hits.pred, np.array([self.by_frame[f] for f in hits.frames]))
+        return _interval(hits.pred, _per_row(self.by_frame, hits.frames))
 
     def state(self):
-        return {"quantile_by_frame": {str(f): q for f, q in self.by_frame.items()}}
+        return {"quantile_by_frame": _to_json(self.by_frame)}
 
     def restore(self, state, model_stem, fitted):
-        self.by_frame = {int(f): q for f, q in state["quantile_by_frame"].items()}
+        self.by_frame = _from_json(state["quantile_by_frame"])
 
 
 @register
@@ -178,7 +190,7 @@ class EnsembleTime(Estimator):
     name = "ensemble_time"
 
     def _sigma(self, hits):
-        return hits.ensemble_strike.std(axis=0, ddof=1) + self.c * hits.frames + 1e-6
+        return hits.ensemble_spread + self.c * hits.frames + 1e-6
 
     def fit(self, hits, fitted, rng):
         train, cal = hits.train, hits.calibration
@@ -187,14 +199,14 @@ class EnsembleTime(Estimator):
         self.by_frame = mondrian_quantiles(scores[cal], hits.frames[cal], self.alpha, hits.groups[cal])
 
     def apply(self, hits):
-        return _interval(hits.pred, np.array([self.by_frame[f] for f in hits.frames]) * self._sigma(hits))
+        return _interval(hits.pred, _per_row(self.by_frame, hits.frames) * self._sigma(hits))
 
     def state(self):
-        return {"c": self.c, "quantile_by_frame": {str(f): q for f, q in self.by_frame.items()}}
+        return {"c": self.c, "quantile_by_frame": _to_json(self.by_frame)}
 
     def restore(self, state, model_stem, fitted):
         self.c = state["c"]
-        self.by_frame = {int(f): q for f, q in state["quantile_by_frame"].items()}
+        self.by_frame = _from_json(state["quantile_by_frame"])
 
 
 @register
@@ -221,16 +233,15 @@ class MondrianSpeed(Estimator):
                                           hits.groups[cal])
 
     def apply(self, hits):
-        # a cell no calibration hit reached has no quantile: an infinite interval, as conformal gives
-        return _interval(hits.pred, np.array([self.by_cell.get(c, np.inf) for c in self._cells(hits)]))
+        return _interval(hits.pred, _per_row(self.by_cell, self._cells(hits)))
 
     def state(self):
         return {"speed_edges_m_s": {str(f): e.tolist() for f, e in self.edges.items()},
-                "quantile_by_cell": {str(c): q for c, q in self.by_cell.items()}}
+                "quantile_by_cell": _to_json(self.by_cell)}
 
     def restore(self, state, model_stem, fitted):
         self.edges = {int(f): np.asarray(e) for f, e in state["speed_edges_m_s"].items()}
-        self.by_cell = {int(c): q for c, q in state["quantile_by_cell"].items()}
+        self.by_cell = _from_json(state["quantile_by_cell"])
 
 
 class Normalised(Estimator):
@@ -342,7 +353,7 @@ class Hetero(Learned):
 
     def apply(self, hits):
         centre, std = self.mean_std(hits)
-        half = NormalDist().inv_cdf(1 - self.alpha / 2) * std
+        half = self.z * std
         return Band(std, centre - half, centre + half, std=std)
 
 
@@ -358,15 +369,15 @@ class OnHetero(Estimator):
 
     def apply(self, hits):
         centre, std = self.hetero.mean_std(hits)
-        lower, upper = self.bounds(centre, std, np.array([self.by_frame[f] for f in hits.frames]))
+        lower, upper = self.bounds(centre, std, _per_row(self.by_frame, hits.frames))
         return Band((upper - lower) / 2, lower, upper)
 
     def state(self):
-        return {"quantile_by_frame": {str(f): q for f, q in self.by_frame.items()}}
+        return {"quantile_by_frame": _to_json(self.by_frame)}
 
     def restore(self, state, model_stem, fitted):
         self.hetero = fitted[Hetero.name]
-        self.by_frame = {int(f): q for f, q in state["quantile_by_frame"].items()}
+        self.by_frame = _from_json(state["quantile_by_frame"])
 
 
 @register
@@ -392,7 +403,7 @@ class CqrHetero(OnHetero):
     name = "cqr_hetero"
 
     def _quantiles(self, centre, std):
-        half = NormalDist().inv_cdf(1 - self.alpha / 2) * std
+        half = self.z * std
         return centre - half, centre + half
 
     def scores(self, y, centre, std):
@@ -416,38 +427,37 @@ class Clear(Estimator):
     LAMBDAS = (0.0, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0)
 
     def _parts(self, hits):
+        """(centre, aleatoric std, epistemic std) per row, m."""
         centre, aleatoric = self.hetero.mean_std(hits)
-        return centre, aleatoric, hits.ensemble_strike.std(axis=0, ddof=1)
-
-    def _gamma(self, hits, rows, lam):
-        centre, aleatoric, epistemic = self._parts(hits)
-        scores = normalised_scores(np.abs(hits.y - centre), aleatoric + lam * epistemic)
-        return mondrian_quantiles(scores[rows], hits.frames[rows], self.alpha, hits.groups[rows])
-
-    def _winkler(self, hits, rows, lam, gamma):
-        from pingpong.uncertainty.metrics import winkler_score  # scipy: not on the workflow's import path
-
-        centre, aleatoric, epistemic = self._parts(hits)
-        half = np.array([gamma[f] for f in hits.frames[rows]]) * (aleatoric + lam * epistemic)[rows]
-        return winkler_score(hits.y[rows], centre[rows] - half, centre[rows] + half, self.alpha)
+        return centre, aleatoric, hits.ensemble_spread
 
     def fit(self, hits, fitted, rng):
+        from pingpong.uncertainty.metrics import winkler_score  # scipy: not on the workflow's import path
+
         self.hetero = fitted[Hetero.name]
+        centre, aleatoric, epistemic = self._parts(hits)
+        residual = np.abs(hits.y - centre)
+
+        def gamma(rows, lam):
+            scores = normalised_scores(residual, aleatoric + lam * epistemic)
+            return mondrian_quantiles(scores[rows], hits.frames[rows], self.alpha, hits.groups[rows])
+
+        def winkler(rows, lam):
+            half = _per_row(gamma(rows, lam), hits.frames[rows]) * (aleatoric + lam * epistemic)[rows]
+            return winkler_score(hits.y[rows], centre[rows] - half, centre[rows] + half, self.alpha)
+
         cal_hits = np.unique(hits.groups[hits.calibration])
         choose = np.isin(hits.groups, cal_hits[: len(cal_hits) // 2])
-        calibrate = hits.calibration & ~choose
-        self.lam = min(self.LAMBDAS, key=lambda lam: self._winkler(hits, choose, lam,
-                                                                   self._gamma(hits, choose, lam)))
-        self.by_frame = self._gamma(hits, calibrate, self.lam)
+        self.lam = min(self.LAMBDAS, key=lambda lam: winkler(choose, lam))
+        self.by_frame = gamma(hits.calibration & ~choose, self.lam)
 
     def apply(self, hits):
         centre, aleatoric, epistemic = self._parts(hits)
-        half = np.array([self.by_frame[f] for f in hits.frames]) * (aleatoric + self.lam * epistemic)
-        return _interval(centre, half)
+        return _interval(centre, _per_row(self.by_frame, hits.frames) * (aleatoric + self.lam * epistemic))
 
     def state(self):
-        return {"lambda": self.lam, "gamma_by_frame": {str(f): q for f, q in self.by_frame.items()}}
+        return {"lambda": self.lam, "gamma_by_frame": _to_json(self.by_frame)}
 
     def restore(self, state, model_stem, fitted):
         self.hetero, self.lam = fitted[Hetero.name], state["lambda"]
-        self.by_frame = {int(f): q for f, q in state["gamma_by_frame"].items()}
+        self.by_frame = _from_json(state["gamma_by_frame"])

@@ -53,6 +53,8 @@ class Hits:
 
     split = property(lambda self: self.column("split"))
     groups = property(lambda self: self.column("hit_index"), doc="each row's hit: conformal groups by it")
+    ensemble_spread = property(lambda self: self.ensemble_strike.std(axis=0, ddof=1),
+                               doc="the std of the members' strike points per row (m)")
     frames = property(lambda self: self.column("frames_before_hit"))
     pred = property(lambda self: self.column("strike_x_pred"))
     y = property(lambda self: self.column("strike_x"))
@@ -101,6 +103,11 @@ class Estimator:
     @property
     def alpha(self) -> float:
         return 1 - self.settings.coverage
+
+    @property
+    def z(self) -> float:
+        """The normal quantile of a central interval at the nominal coverage."""
+        return NormalDist().inv_cdf(1 - self.alpha / 2)
 
     def fit(self, hits: Hits, fitted: dict, rng: np.random.Generator) -> None:
         """Learn from hits.train / calibrate on hits.calibration; `fitted`: estimators fitted so far."""
