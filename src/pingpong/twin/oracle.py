@@ -26,6 +26,7 @@ from pingpong.twin.ball import SLOWER_AIMS, BallParams, _contact, aim_shots, rk4
 from pingpong.twin.repertoire import draw_execution, draw_intent, draw_late, executed_shot
 
 N_DRAWS = 200
+BATCH_DRAWS = 20_000  # balls flown at once: ~100 MB of aiming tracks, numpy's overhead amortised
 ORACLE_COLUMNS = ("rally", "shot", "t_hit_ns", "frames_before_hit", "oracle_mean_x", "oracle_std_x",
                   "oracle_q05_x", "oracle_q95_x", "oracle_n")
 _FRAME_S = FRAME_NS / 1e9
@@ -59,46 +60,48 @@ def redraw(record, hold_intent: bool, hold_late: bool, rng: np.random.Generator,
     return target, speed, w, execution["params"]
 
 
-def paddle_spin(w_wanted, v_out, ctx, ratio: float) -> np.ndarray:
+def paddle_spin(w_wanted, v_out, v_in, w_in, ratio) -> np.ndarray:
     """The spin (n, 3) a brushing paddle gives, approximated: friction acts in the face, so the wanted
-    spin across the face normal is given (scaled by the ratio the shot's own paddle achieved) and the
-    incoming spin about the normal stays. The normal is taken along v_out - v_in (the frictionless
-    paddle's, paddle_for_outgoing's start)."""
-    n = v_out - ctx.v_in
+    spin across the face normal is given (scaled by the ratio (n, 1) the shot's own paddle achieved) and
+    the incoming spin w_in (n, 3) about the normal stays. The normal is taken along v_out - v_in (the
+    frictionless paddle's, paddle_for_outgoing's start)."""
+    n = v_out - v_in
     n /= np.linalg.norm(n, axis=1, keepdims=True)
 
     def along(w):
         return np.sum(w * n, axis=1, keepdims=True) * n
 
-    return ratio * (w_wanted - along(w_wanted)) + along(np.broadcast_to(ctx.w_in, w_wanted.shape))
+    return ratio * (w_wanted - along(w_wanted)) + along(w_in)
 
 
 def _aim(p_hit, target, w, params, speed, flight_time=None):
-    """Outgoing velocities (n, 3), NaN where no speed hint clears the net (the twin's _aim_slower), and
-    their flight times (n,); a given flight_time (n,) starts the aim from there instead."""
+    """Outgoing velocities (n, 3) from p_hit (n, 3), NaN where no speed hint clears the net (the twin's
+    _aim_slower), and their flight times (n,); a given flight_time (n,) starts the aim from there instead."""
     v, T = np.full((len(target), 3), np.nan), np.full(len(target), np.nan)
     for factor in SLOWER_AIMS:
         todo = np.flatnonzero(np.isnan(v[:, 0]))
         if len(todo) == 0:
             break
         start = None if flight_time is None else flight_time[todo]
-        v[todo], T[todo] = aim_shots(np.tile(p_hit, (len(todo), 1)), target[todo], w[todo],
+        v[todo], T[todo] = aim_shots(p_hit[todo], target[todo], w[todo],
                                      [params[i] for i in todo], flight_time=start,
                                      speed_hint=speed[todo] * factor, strict=False)
         flight_time = None  # what the given times could not clear falls back to the speed hints
     return v, T
 
 
-def strike_x_batch(p_hit, v_out, w, params, side: int, dt: float = 0.004, t_max: float = 1.5) -> np.ndarray:
-    """x (n,) where each ball crosses the far strike line y = side * STRIKE_Y after exactly one bounce
-    on the far half; NaN for balls that do not (no bounce there, a second bounce, the floor)."""
+def strike_x_batch(p_hit, v_out, w, params, side, dt: float = 0.004, t_max: float = 1.5) -> np.ndarray:
+    """x (n,) where each ball, hit at p_hit ((3,) or (n, 3)) by the player at side (+1/-1, or (n,)),
+    crosses the far strike line y = side * STRIKE_Y after exactly one bounce on the far half; NaN for
+    balls that do not (no bounce there, a second bounce, the floor)."""
     n = len(v_out)
     kd, km, ks = (np.array([getattr(q, a) for q in params])
                   for a in ("k_drag", "k_magnus", "magnus_saturation"))
     e = np.array([q.table_restitution for q in params])[:, None]
     mu = np.array([q.table_friction for q in params])[:, None]
     r = params[0].radius
-    p, v, w = np.tile(p_hit, (n, 1)).T, v_out.T.copy(), w.T.copy()
+    p, v, w = np.broadcast_to(p_hit, (n, 3)).T.copy(), v_out.T.copy(), w.T.copy()
+    side = np.broadcast_to(side, (n,))
     bounced, active = np.zeros(n, bool), np.isfinite(v[0])
     x = np.full(n, np.nan)
     for _ in range(int(t_max / dt)):
@@ -129,45 +132,67 @@ def strike_x_batch(p_hit, v_out, w, params, side: int, dt: float = 0.004, t_max:
     return x
 
 
-def oracle_flights(record, target, speed, w_wanted, params) -> np.ndarray:
-    """Strike x (n,) of shots aimed like the twin's: aimed with the wanted spin, the paddle's spin
-    (paddle_spin) estimated from that aim, re-aimed with it and flown (NaN: not a good shot)."""
-    ctx = record.ctx
-    w = w_wanted * record.spin_ratio
-    v, T = _aim(ctx.p_hit, target, w, params, speed)
+def oracle_flights(shots: dict, target, speed, w_wanted, params) -> np.ndarray:
+    """Strike x (n,) of n shots aimed like the twin's: aimed with the wanted spin, the paddle's spin
+    (paddle_spin) estimated from that aim, re-aimed with it and flown (NaN: not a good shot). shots: each
+    draw's hit, {"p_hit", "v_in", "w_in": (n, 3), "side", "spin_ratio": (n,)}."""
+    ratio = shots["spin_ratio"][:, None]
+    w = w_wanted * ratio
+    v, T = _aim(shots["p_hit"], target, w, params, speed)
     ok = np.isfinite(v[:, 0])
-    w[ok] = paddle_spin(w_wanted[ok], v[ok], ctx, record.spin_ratio)
-    v, _ = _aim(ctx.p_hit, target, w, params, speed, np.where(ok, T, np.nan))
-    return strike_x_batch(ctx.p_hit, v, w, params, ctx.side)
+    w[ok] = paddle_spin(w_wanted[ok], v[ok], shots["v_in"][ok], shots["w_in"][ok], ratio[ok])
+    v, _ = _aim(shots["p_hit"], target, w, params, speed, np.where(ok, T, np.nan))
+    return strike_x_batch(shots["p_hit"], v, w, params, shots["side"])
 
 
-def shot_oracle(record, rng: np.random.Generator, n_draws: int = N_DRAWS,
-                ball: BallParams = BallParams()) -> list:
-    """Rows (dicts of ORACLE_COLUMNS but t_hit_ns) for frames 0..N_PRED_FRAMES of one good shot."""
-    rows, cache = [], {}
-    for f in range(N_PRED_FRAMES + 1):
-        key = held(record, f)
-        if key not in cache:
-            target, speed, w_wanted, params = redraw(record, *key, rng, n_draws, ball)
-            xs = oracle_flights(record, target, speed, w_wanted, params)
-            cache[key] = xs[np.isfinite(xs)]
-        xs = cache[key]
-        q05, q95 = np.quantile(xs, [0.05, 0.95]) if len(xs) else (np.nan, np.nan)
-        rows.append({"rally": record.rally, "shot": record.shot, "frames_before_hit": f,
-                     "oracle_mean_x": float(np.mean(xs)) if len(xs) else np.nan,
-                     "oracle_std_x": float(np.std(xs, ddof=1)) if len(xs) > 1 else np.nan,
-                     "oracle_q05_x": float(q05), "oracle_q95_x": float(q95), "oracle_n": len(xs)})
-    return rows
+def _draw_sets(records, rng: np.random.Generator, n_draws: int, ball: BallParams) -> list:
+    """(record index, held key, redraw's draws) for every shot's distinct held decisions, in frame order:
+    frames between two decision times share one set."""
+    return [(i, key, redraw(rec, *key, rng, n_draws, ball)) for i, rec in enumerate(records)
+            for key in dict.fromkeys(held(rec, f) for f in range(N_PRED_FRAMES + 1))]
 
 
-def session_oracle(records, rng: np.random.Generator, epoch_ns: int, n_draws: int = N_DRAWS) -> pd.DataFrame:
-    """The oracle table of a session's good shots (ShotRecord), t_hit_ns on the session's clock."""
-    rows = []
-    for rec in records:
-        t_hit_ns = int(round(rec.t_hit * 1e9)) + epoch_ns
-        rows += [{**row, "t_hit_ns": t_hit_ns} for row in shot_oracle(rec, rng, n_draws)]
+def _fly_sets(records, sets: list) -> list[np.ndarray]:
+    """The good draws' strike x of each draw set, flown together in batches of about BATCH_DRAWS."""
+    out, first = [], 0
+    while first < len(sets):
+        last, size = first, 0
+        while last < len(sets) and (size == 0 or size + len(sets[last][2][1]) <= BATCH_DRAWS):
+            size += len(sets[last][2][1])
+            last += 1
+        batch = sets[first:last]
+        owner = np.concatenate([np.full(len(d[1]), i) for i, _, d in batch])
+        shots = {"p_hit": np.stack([records[i].ctx.p_hit for i in owner]),
+                 "v_in": np.stack([records[i].ctx.v_in for i in owner]),
+                 "w_in": np.stack([records[i].ctx.w_in for i in owner]),
+                 "side": np.array([records[i].ctx.side for i in owner], float),
+                 "spin_ratio": np.array([records[i].spin_ratio for i in owner])}
+        xs = oracle_flights(shots, *(np.concatenate([d[k] for _, _, d in batch]) for k in range(3)),
+                            [q for _, _, d in batch for q in d[3]])
+        out += [x[np.isfinite(x)] for x in np.split(xs, np.cumsum([len(d[1]) for _, _, d in batch])[:-1])]
+        first = last
+    return out
+
+
+def _summary(xs: np.ndarray) -> dict:
+    q05, q95 = np.quantile(xs, [0.05, 0.95]) if len(xs) else (np.nan, np.nan)
+    return {"oracle_mean_x": float(np.mean(xs)) if len(xs) else np.nan,
+            "oracle_std_x": float(np.std(xs, ddof=1)) if len(xs) > 1 else np.nan,
+            "oracle_q05_x": float(q05), "oracle_q95_x": float(q95), "oracle_n": len(xs)}
+
+
+def session_oracle(records, rng: np.random.Generator, epoch_ns: int, n_draws: int = N_DRAWS,
+                   ball: BallParams = BallParams()) -> pd.DataFrame:
+    """The oracle table of a session's good shots (ShotRecord), t_hit_ns on the session's clock.
+
+    Every shot's draws are made first (the rng's order is the shots' and frames'), then flown together:
+    batches of thousands of balls spend their time in arithmetic, not in numpy's per-call overhead.
+    """
+    sets = _draw_sets(records, rng, n_draws, ball)
+    summaries = {(i, key): _summary(xs) for (i, key, _), xs in zip(sets, _fly_sets(records, sets), strict=True)}
+    rows = [{"rally": rec.rally, "shot": rec.shot, "t_hit_ns": int(round(rec.t_hit * 1e9)) + epoch_ns,
+             "frames_before_hit": f, **summaries[i, held(rec, f)]}
+            for i, rec in enumerate(records) for f in range(N_PRED_FRAMES + 1)]
     out = pd.DataFrame(rows, columns=list(ORACLE_COLUMNS))
     return out.astype({"rally": np.int32, "shot": np.int32, "t_hit_ns": np.int64,
                        "frames_before_hit": np.int32, "oracle_n": np.int32})
-
-
