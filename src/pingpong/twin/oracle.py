@@ -189,7 +189,8 @@ def session_oracle(records, rng: np.random.Generator, epoch_ns: int, n_draws: in
     batches of thousands of balls spend their time in arithmetic, not in numpy's per-call overhead.
     """
     sets = _draw_sets(records, rng, n_draws, ball)
-    summaries = {(i, key): _summary(xs) for (i, key, _), xs in zip(sets, _fly_sets(records, sets), strict=True)}
+    flown = _fly_sets(records, sets)
+    summaries = {(i, key): _summary(xs) for (i, key, _), xs in zip(sets, flown, strict=True)}
     rows = [{"rally": rec.rally, "shot": rec.shot, "t_hit_ns": int(round(rec.t_hit * 1e9)) + epoch_ns,
              "frames_before_hit": f, **summaries[i, held(rec, f)]}
             for i, rec in enumerate(records) for f in range(N_PRED_FRAMES + 1)]
