@@ -390,6 +390,20 @@ def _fly_batch(p0, v0, w, kd, km, ks, T, dt_max, r):
     return p.T, clearance
 
 
+def _net_flight_time(p_hit, goal, w, km, ks, T_hint, net_margin):
+    """The shortest flight time (N,) s at which a parabola from p_hit to goal passes over the net with the
+    margin, under gravity plus the downward Magnus acceleration of topspin w at the hinted speed: heavy
+    topspin pulls a ball down, so a drive clears the net at speeds a spinless ball cannot (drag ignored)."""
+    v = (goal - p_hit) / T_hint[:, None]
+    g_eff = -accel_rows(v.T, w.T, np.zeros(len(v)), km.ravel(), ks.ravel())[2]  # downwards, drag-free
+    # only a pull down shortens the bound: backspin keeps gravity's (the net check lengthens a flight
+    # where it must; a floatier bound made pushes slower and doubled their second bounces, measured)
+    g_eff = np.maximum(g_eff, GRAVITY)
+    s = np.clip(p_hit[:, 1] / (p_hit[:, 1] - goal[:, 1]), 0.05, 0.95)  # flight share before the net
+    height = NET_HEIGHT + goal[:, 2] + net_margin - p_hit[:, 2] * (1 - s) - goal[:, 2] * s
+    return np.sqrt(np.maximum(2 * height / (g_eff * s * (1 - s)), 0.0))
+
+
 def aim_shots(p_hit, target_bounce_xy, w0, params: BallParams | Sequence[BallParams] = BallParams(),
               flight_time=None, speed_hint: float = 9.0, net_margin: float = 0.03,
               dt_max: float = 0.02, tol: float = 1e-5, strict: bool = True) -> tuple[np.ndarray, np.ndarray]:
@@ -413,11 +427,8 @@ def aim_shots(p_hit, target_bounce_xy, w0, params: BallParams | Sequence[BallPar
     r = np.array([q.radius for q in plist])
     goal = np.column_stack([target, r])
     if flight_time is None:
-        # the hint, but no shorter than a drag-free parabola needs to pass over the net with the margin
-        s = np.clip(p_hit[:, 1] / (p_hit[:, 1] - goal[:, 1]), 0.05, 0.95)  # flight share before the net
-        height = NET_HEIGHT + r + net_margin - p_hit[:, 2] * (1 - s) - r * s
-        T_net = np.sqrt(np.maximum(2 * height / (GRAVITY * s * (1 - s)), 0.0))
-        T = np.maximum(np.linalg.norm(goal[:, :2] - p_hit[:, :2], axis=1) / speed_hint, 1.05 * T_net)
+        T = np.linalg.norm(goal[:, :2] - p_hit[:, :2], axis=1) / speed_hint
+        T = np.maximum(T, 1.05 * _net_flight_time(p_hit, goal, w0, km, ks, T, net_margin))
     else:
         T = np.broadcast_to(np.asarray(flight_time, float), (n_shots,)).copy()
     v0 = np.empty((n_shots, 3))
