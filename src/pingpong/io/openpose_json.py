@@ -57,18 +57,17 @@ def keypoints_filename(basename: str, frame: int) -> str:
     return f"{basename}_{frame:012d}_keypoints.json"
 
 
-def _number(value: float) -> str:
-    """OpenPose prints floats with 6 significant digits and integral zeros as 0."""
-    return "0" if value == 0 else f"{value:.6g}"
+# OpenPose prints floats with 6 significant digits and integral zeros as 0 ("%.6g" does both); one
+# format string for a person's 75 numbers formats them in one call, ~4x faster than number by number.
+_POSE_FORMAT = ",".join(["%.6g"] * (N_JOINTS * 3))
+_EMPTY = ",".join(f'"{field}":[]' for field in EMPTY_FIELDS)
 
 
 def format_keypoints_json(people: np.ndarray) -> str:
     """The JSON text of one frame's people (P, 25, 3) [x, y, confidence]."""
-    persons = []
-    for person in np.asarray(people, float).reshape(-1, N_JOINTS, 3):
-        pose = ",".join(_number(v) for v in person.ravel())
-        empty = ",".join(f'"{field}":[]' for field in EMPTY_FIELDS)
-        persons.append(f'{{"person_id":[-1],"pose_keypoints_2d":[{pose}],{empty}}}')
+    rows = np.asarray(people, float).reshape(-1, N_JOINTS * 3) + 0.0  # + 0.0: -0 prints as 0
+    persons = [f'{{"person_id":[-1],"pose_keypoints_2d":[{_POSE_FORMAT % tuple(row)}],{_EMPTY}}}'
+               for row in rows.tolist()]
     return '{"version":1.3,"people":[' + ",".join(persons) + "]}"
 
 

@@ -14,6 +14,7 @@ from pingpong.common.camera import Camera
 # BODY_25 index groups that OpenPose confuses as a whole when it swaps sides
 LIMB_SWAPS = (((2, 3, 4), (5, 6, 7)), ((9, 10, 11), (12, 13, 14)), ((22, 23, 24), (19, 20, 21)))
 NOISY_JOINTS = (4, 7, 11, 14)  # wrists and ankles
+_JOINT_NOISE = np.where(np.isin(np.arange(25), NOISY_JOINTS), 1.5, 1.0)  # per joint, relative
 OCCLUDER_RADIUS = 0.15  # m, a person's width around the line of their joints, for occlusion tests
 MIN_JOINTS = 6
 
@@ -48,7 +49,7 @@ def simulate_openpose(camera: Camera, people_joints: list[np.ndarray], rng: np.r
         hidden = _occluded(px, depth, [projected[k] for k in others], [depths[k] for k in others], f)
         inside = (depth > 0.1) & (px[:, 0] >= 0) & (px[:, 0] < camera.width) & (px[:, 1] >= 0) \
             & (px[:, 1] < camera.height)
-        scale = np.where(np.isin(np.arange(25), NOISY_JOINTS), 1.5, 1.0) * np.where(hidden, 2.0, 1.0)
+        scale = _JOINT_NOISE * np.where(hidden, 2.0, 1.0)
         noisy = px + rng.normal(0.0, 1.0, px.shape) * (sigma * scale)[:, None]
         confidence = np.where(hidden, rng.uniform(0.05, 0.4, 25), rng.uniform(0.55, 0.95, 25))
         detected = inside & ~(hidden & (rng.random(25) < 0.5)) & (rng.random(25) > 0.02)
