@@ -115,7 +115,8 @@ def test_shipped_configs_are_valid():
 
     names = [p.relative_to(ROOT / "config") for p in sorted((ROOT / "config").glob("**/*.yaml"))
              if p.name != "schema.yaml" and "robot" not in p.parts]
-    assert {"config.yaml", "paper.yaml", "paper_hits.yaml", "twin_homoscedastic.yaml"} <= {str(n) for n in names}
+    shipped = {"config.yaml", "paper.yaml", "paper_hits.yaml", "twin_homoscedastic.yaml"}
+    assert shipped <= {str(n) for n in names}
     for name in names:
         path = ROOT / "config" / name
         validate_config(yaml.safe_load(path.read_text()) or {}, SCHEMA)

@@ -16,12 +16,13 @@ from workflow_util import DEFAULTS
 
 from pingpong.common.artifacts import Provenance, read_table, write_table
 from pingpong.curation.dataset import build_dataset, dataset_arrays, input_sequences
+from pingpong.curation.events import drop_ball_outliers
 from pingpong.curation.filtering import filter_session
 from pingpong.curation.labels import mirror_points
 from pingpong.curation.schemas import CANDIDATE_COLUMNS, CURATION_RULES, DATASET, EVENT_COLUMNS
 from pingpong.curation.segments import CurationRules, curate_segments, find_segments
 from pingpong.curation.tracks import JOINT_XYZ
-from pingpong.frames import FRAME_NS, MODEL_JOINT_IDS, N_INPUT, ROT_COLUMNS
+from pingpong.frames import FRAME_NS, MODEL_JOINT_IDS, N_INPUT, ROT_COLUMNS, TABLE_HALF_WIDTH
 from pingpong.twin.session import FaultRates, ball_positions_at, simulate_session
 
 N_FRAMES = 40
@@ -125,7 +126,10 @@ def test_hits_and_bounces_found_within_a_frame(run):
     # measured: all 114 hits within a frame (median 0.3 ms), none spurious; bounces: all 150, none spurious
     assert found.mean() >= 0.99 and (~real).mean() <= 0.01, (found.mean(), (~real).sum())
     bounces = truth.events[truth.events["kind"] == "bounce"]
-    # bounces that a 100 Hz camera can see: falling at 1 m/s or faster (a dead ball's last hops are not)
+    # bounces that a 100 Hz camera can see: falling at 1 m/s or faster (a dead ball's last hops are not),
+    # and not edge balls: within 1 cm of the table's side the seen bounce (2 mm noise) may fall off the
+    # table, which the detector does not count (1 of 199 on this session, 2.7 mm inside the edge)
+    bounces = bounces[np.abs(bounces["x"]) < TABLE_HALF_WIDTH - 0.01]
     vz = np.interp(bounces["time_ns"] - 2_000_000, truth.ball["time_ns"], truth.ball["vz"])
     found_bounces = events.loc[events["kind"] == "bounce", "time_ns"]
     found, _ = _matched(bounces["time_ns"][vz < -1.0], found_bounces)
@@ -133,11 +137,6 @@ def test_hits_and_bounces_found_within_a_frame(run):
     assert found.mean() >= 0.99 and (~real).mean() <= 0.01, (found.mean(), (~real).sum())
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "known defect, found 2026-12-02: drop_ball_outliers confirms a sample by a neighbour 2 frames away "
-    "within 40 m/s * 20 ms + 5 cm = 0.85 m, so this session's injected outlier 0.77 m off its flight (at "
-    "y = 0.02 m, where it also makes two spurious net crossings that cut the filter) stays and the filtered "
-    "ball is 21.7 cm off there; fixing the gate changes the default run's curation, left for the next run"))
 def test_filtered_ball_is_closer_to_the_truth(run):
     true = ball_positions_at(run["truth"].ball, run["ball3d"]["time_ns"].to_numpy())
     raw, filtered = (np.linalg.norm(run[k][["x", "y", "z"]].to_numpy() - true, axis=1)
@@ -155,6 +154,20 @@ def test_filtered_ball_is_closer_to_the_truth(run):
     assert rms(filtered) < 0.75 * rms(raw)
 
 
+@pytest.mark.xfail(strict=True, reason=(
+    "known defect, found 2026-12-02: drop_ball_outliers confirms a sample by a neighbour 2 frames away "
+    "within 40 m/s * 20 ms + 5 cm = 0.85 m, so an outlier 0.77 m off its flight stays (a session of the "
+    "twin put one at the net, where it also made two spurious net crossings that cut the filter); fixing "
+    "the gate changes the default run's curation, left for a run of its own"))
+def test_an_outlier_within_the_gate_of_a_neighbour_two_frames_away_is_dropped():
+    t = np.arange(100) / 100
+    ball = np.column_stack([np.zeros(100), -2.0 + 5.0 * t, 0.3 + 0.0 * t])
+    ball[50, 2] += 0.77
+    ball3d = pd.DataFrame({"time_ns": (t * 1e9).astype(np.int64), "x": ball[:, 0], "y": ball[:, 1],
+                           "z": ball[:, 2], "n_views": 4, "reproj_rms_px": 0.5})
+    assert np.isnan(drop_ball_outliers(ball3d).loc[50, "z"])
+
+
 def test_curation_agrees_with_the_twins_faults(run):
     segments, shots = run["segments"], run["truth"].shots
     assert set(segments["decision"]) <= {"kept", *CURATION_RULES}
@@ -170,10 +183,15 @@ def test_curation_agrees_with_the_twins_faults(run):
     one_good = [bounces.get((r, s), []) == [f]
                 for r, s, f in zip(truth["rally"], truth["shot"], far_end, strict=True)]
     expected = np.where((expected == "out") & np.array(one_good), "no_strike_line", expected)
+    # and a good return that crosses the strike line below the table top (it fell beside the table before the
+    # receiver took it) has no strike point for the robot either
+    expected = np.where((expected == "kept") & (truth["strike_z"].to_numpy() < 0), "no_strike_line", expected)
     spoilt = truth["t_hit_ns"].map(run["spoilt"]).to_numpy()
     expected = np.where((expected == "kept") & pd.notna(spoilt), spoilt, expected)
     agree = matched["decision"].to_numpy() == expected
-    # measured: all 114 candidates as expected (12 spoilt, 23 faults, 79 kept)
+    # measured: 148 of 151 candidates as expected (12 spoilt, 23 faults): two fast returns met within a
+    # frame of the strike line, whose crossing the seen path ends before, and one edge ball (bounce at
+    # |x| 0.760 m, 2.7 mm inside the edge) seen off the table
     assert agree.mean() >= 0.98, matched.assign(expected=expected)[~agree][["hit", "decision", "expected"]]
     assert set(expected) >= {"kept", "net", "out", "double_bounce", "pose_gaps", "paddle_gaps"}
 
