@@ -26,7 +26,7 @@ from pingpong.twin.ball import SLOWER_AIMS, BallParams, _contact, aim_shots, rk4
 from pingpong.twin.repertoire import draw_execution, draw_intent, draw_late, executed_shot
 
 N_DRAWS = 200
-BATCH_DRAWS = 20_000  # balls flown at once: ~100 MB of aiming tracks, numpy's overhead amortised
+BATCH_DRAWS = 20_000  # balls flown at once: numpy's per-call overhead amortised, a few MB an array
 ORACLE_COLUMNS = ("rally", "shot", "t_hit_ns", "frames_before_hit", "oracle_mean_x", "oracle_std_x",
                   "oracle_q05_x", "oracle_q95_x", "oracle_n")
 _FRAME_S = FRAME_NS / 1e9
