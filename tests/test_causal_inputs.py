@@ -93,7 +93,7 @@ def test_no_input_at_t_depends_on_a_measurement_after_t(session, frames_before_h
 
 def test_streaming_on_measurements_equals_the_batch_prediction(session, tiny_run):
     tables, kept = session
-    net = load_net(str(tiny_run / "processed/models/final"))
+    net = load_net(str(tiny_run / "processed/models/final/seed0"))
     X = causal_inputs(*tables, kept)
     ball, pose = causal_session_inputs(tables[0], tables[1], cutoff_ball_hz=None, cutoff_pose_hz=None)
     n_frames = X.shape[1]

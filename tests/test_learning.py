@@ -24,7 +24,14 @@ from pingpong.learning.models import (
     with_velocity,
 )
 from pingpong.learning.streaming import StreamingPredictor
-from pingpong.learning.train import EarlyStopping, evaluate_loss, predict, strike_points, train
+from pingpong.learning.train import (
+    EarlyStopping,
+    evaluate_loss,
+    predict,
+    predict_seed_mean,
+    strike_points,
+    train,
+)
 
 TINY = dict(rnn_hidden=16, rnn_layers=2, mlp_hidden=16, mlp_layers=1)
 
@@ -264,6 +271,22 @@ def test_streaming_equals_batch(cell, velocity):
             assert strike_x == pytest.approx(float(strike_points(batch[n, i])), abs=1e-5)
     with pytest.raises(ValueError, match="expected 39"):
         stream.step(np.zeros(38))
+
+
+def test_seed_mean_is_the_mean_path_and_the_mean_strike_point():
+    rng = np.random.default_rng(4)
+    X, _ = _random_set(rng, 3)
+    nets = []
+    for seed in (0, 1, 2):
+        net = AnticipationNet("gru", **TINY, seed=seed)
+        net.normaliser.fit(net.features(torch.tensor(X)))
+        nets.append(net)
+    each = np.stack([predict(net, X) for net in nets])
+    mean = predict_seed_mean(nets, X)
+    assert not np.allclose(each[0], each[1])  # the seeds differ, so the mean is not one of them
+    np.testing.assert_allclose(mean, each.mean(axis=0), atol=1e-6)
+    # the strike point is linear in (a1, a2, b): the mean path strikes at the seeds' mean strike point
+    np.testing.assert_allclose(strike_points(mean), strike_points(each).mean(axis=0), atol=1e-6)
 
 
 # --- saving -----------------------------------------------------------------------------------

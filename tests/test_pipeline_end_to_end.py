@@ -63,7 +63,7 @@ def test_uncertainty_tables_for_every_estimator_held_out_hit_and_frame(tiny_run)
 
     dataset = pd.read_parquet(tiny_run / "processed/dataset.parquet")
     held_out = (dataset["split"] != "train").sum()
-    assert len(list((tiny_run / "processed/models/ensemble").glob("member*.safetensors"))) == 2
+    assert len(list((tiny_run / "processed/models/final").glob("seed*.safetensors"))) == 2
     for name in ESTIMATORS:
         table = pd.read_parquet(tiny_run / f"processed/uncertainty/{name}.parquet")
         assert len(table) == 31 * held_out and set(table["split"]) <= {"calibration", "test"}, name

@@ -232,7 +232,7 @@ def test_knn_time_trend_and_features():
     assert np.allclose(F[k + j, 39:78], 100 * (X[1, 39 - f] - X[1, 38 - f])) and F[k + j, 78] == f
 
 
-SETTINGS = UncertaintySettings(ensemble_size=3, coverage=0.9, knn_k=5, quantile_hidden=32, quantile_epochs=20,
+SETTINGS = UncertaintySettings(coverage=0.9, knn_k=5, quantile_hidden=32, quantile_epochs=20,
                                error_head_hidden=16, error_head_epochs=2, hetero_hidden=8, hetero_epochs=2)
 
 

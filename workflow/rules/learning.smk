@@ -1,5 +1,5 @@
 # Learning: 5-fold cross-validated grid search (one job per configuration and fold), the refit of the
-# winner, a ball-only baseline, per-frame predictions and the paper's Table 1.
+# winner with several seeds, a ball-only baseline, per-frame predictions and the paper's Table 1.
 TRAINING = config["training"]
 TRAIN_SETTINGS = {k: TRAINING[k] for k in ("batch_size", "max_epochs", "patience", "min_delta")}
 TRAIN_SETTINGS["device"] = config["device"]
@@ -50,9 +50,18 @@ rule select_model:
         STAGE_SCRIPT
 
 
-# final_{OTHER_INPUTS}: the selected configuration refit on the other kind of inputs (curation.smk), so
-# Table 1 and the robot ablation compare causal and zero-phase inputs on the same hits
+# The final models: the selected configuration refit on the whole training part with seeds seed + k,
+# k < training.seeds, each model the mean of its seeds (a deep ensemble's point prediction); `final` is
+# the model the reports and the robot use, and its seeds are the uncertainty stage's ensemble.
+# ball_only: the same model fed the ball alone; final_{OTHER_INPUTS}: the selected configuration refit on
+# the other kind of inputs (curation.smk), so Table 1 and the robot ablation compare causal and
+# zero-phase inputs on the same hits, each a mean of as many seeds.
 OTHER_FINAL = f"final_{OTHER_INPUTS}"
+SEEDS = range(TRAINING["seeds"])
+
+
+def final_models(variant):
+    return expand("processed/models/{variant}/seed{seed}.safetensors", variant=variant, seed=SEEDS)
 
 
 rule train_final:
@@ -61,21 +70,22 @@ rule train_final:
         else "processed/dataset.parquet",
         selection="processed/models/selection.json",
     output:
-        model="processed/models/{variant}.safetensors",
-        sidecar="processed/models/{variant}.json",
+        model="processed/models/{variant}/seed{seed}.safetensors",
+        sidecar="processed/models/{variant}/seed{seed}.json",
     params:
         ball_only=lambda wc: wc.variant == "ball_only",
         settings=TRAIN_SETTINGS,
-        seed=config["seed"],
+        seed=lambda wc: config["seed"] + int(wc.seed),
         code=code("train_final"),
     wildcard_constraints:
         variant=f"final|ball_only|{OTHER_FINAL}",
+        seed=r"\d+",
     resources:
         gpu=1 if config["device"] == "cuda" else 0,
     log:
-        "logs/train_final/{variant}.log",
+        "logs/train_final/{variant}_seed{seed}.log",
     benchmark:
-        "benchmarks/results/train_final/{variant}.tsv"
+        "benchmarks/results/train_final/{variant}_seed{seed}.tsv"
     conda:
         CONDA_ENV
     script:
@@ -87,9 +97,9 @@ rule predict:
         dataset="processed/dataset.parquet",
         other_dataset=f"processed/dataset_{OTHER_INPUTS}.parquet",
         selection="processed/models/selection.json",
-        final="processed/models/final.safetensors",
-        ball_only="processed/models/ball_only.safetensors",
-        other_final=f"processed/models/{OTHER_FINAL}.safetensors",
+        final=final_models("final"),
+        ball_only=final_models("ball_only"),
+        other_final=final_models(OTHER_FINAL),
         cv_models=expand("processed/models/cv/{config_id}/fold{fold}.safetensors", config_id=GRID, fold=FOLDS),
     output:
         predictions="processed/predictions.parquet",
@@ -114,6 +124,7 @@ rule report_strike_error:
         frames_csv="reports/tables/strike_error_by_frame.csv",
         figure=report("reports/figures/strike_error.png", caption="../report/strike_error.rst", category="learning"),
     params:
+        seeds=TRAINING["seeds"],
         code=code("report_strike_error"),
     log:
         "logs/report_strike_error.log",

@@ -1,42 +1,15 @@
-# Uncertainty: an ensemble of the selected configuration (one job per member), every estimator fitted
-# and applied to the calibration and test hits, and the report.
+# Uncertainty: every estimator fitted and applied to the calibration and test hits (the ensemble is the
+# final model's seeds, learning.smk), and the report.
 from pingpong.uncertainty.names import ESTIMATORS, MODEL_FILES  # the registry's names
 
 UNCERTAINTY = config["uncertainty"]
-MEMBERS = range(UNCERTAINTY["ensemble_size"])
-
-
-rule ensemble_member:
-    input:
-        dataset="processed/dataset.parquet",
-        selection="processed/models/selection.json",
-    output:
-        model="processed/models/ensemble/member{member}.safetensors",
-        sidecar="processed/models/ensemble/member{member}.json",
-    params:
-        member=lambda wc: int(wc.member),
-        settings=TRAIN_SETTINGS,
-        seed=config["seed"],
-        code=code("ensemble_member"),
-    wildcard_constraints:
-        member=r"\d+",
-    log:
-        "logs/ensemble_member/member{member}.log",
-    benchmark:
-        "benchmarks/results/ensemble_member/member{member}.tsv"
-    resources:
-        gpu=1 if config["device"] == "cuda" else 0,
-    conda:
-        CONDA_ENV
-    script:
-        STAGE_SCRIPT
 
 
 rule fit_uncertainty:
     input:
         dataset="processed/dataset.parquet",
         predictions="processed/predictions.parquet",
-        members=expand("processed/models/ensemble/member{member}.safetensors", member=MEMBERS),
+        members=final_models("final"),
     output:
         tables=expand("processed/uncertainty/{estimator}.parquet", estimator=ESTIMATORS),
         fitted="processed/uncertainty/estimators.json",

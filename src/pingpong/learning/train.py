@@ -165,6 +165,15 @@ def predict(net: AnticipationNet, X, lengths=None, batch_size: int = 500) -> np.
     return torch.cat(chunks).numpy()
 
 
+def predict_seed_mean(nets, X, lengths=None) -> np.ndarray:
+    """`predict` averaged over nets (the seeds of one configuration): a deep ensemble's point prediction
+    (Lakshminarayanan et al. 2017). The strike point is linear in (a1, a2, b), so it is the seeds'
+    mean strike point too. On the default run of 2026-12-02 five seeds' mean had a median strike error
+    of 28.1 / 19.4 cm 10 / 1 frames before the hit against 31.8 / 24.7 cm for seed 0 alone
+    (analysis/seed_average.py)."""
+    return np.mean([predict(net, X, lengths) for net in nets], axis=0)
+
+
 def strike_points(pred):
     """Strike-point x (m) of paths (..., 3) at the strike line y = STRIKE_Y (< 0: the a2 line).
 

@@ -1,9 +1,12 @@
 """Rule predict: per hit and frame before the hit, the trajectory parameters and the strike point.
 
-Test and calibration hits: the final model (and, for the reports, the ball-only baseline and the
-final model refit on the other kind of inputs, on those inputs). Training hits: out of fold, each
-predicted by the selected configuration's model that did not train on it.
+Test and calibration hits: the final model, the mean of its seeds (and, for the reports, the ball-only
+baseline and the final model refit on the other kind of inputs, on those inputs, each a mean of as
+many seeds). Training hits: out of fold, each predicted by the selected configuration's model that
+did not train on it (one seed: the cross-validation's).
 """
+
+from pathlib import Path
 
 import pandas as pd
 
@@ -13,27 +16,28 @@ from pingpong.curation.schemas import DATASET
 from pingpong.learning.cv import BALL_ONLY, prediction_table
 from pingpong.learning.models import load_net
 from pingpong.learning.schemas import PREDICTIONS, SELECTION
-from pingpong.learning.train import predict
+from pingpong.learning.train import predict, predict_seed_mean
 
 
-def _stem(weights_path: str) -> str:
-    return weights_path.removesuffix(".safetensors")
+def _nets(weights_paths) -> list:
+    return [load_net(str(weights).removesuffix(".safetensors")) for weights in weights_paths]
 
 
 def main(ctx):
-    dataset = read_table(ctx.input.dataset, DATASET)
-    best = read_json(ctx.input.selection, SELECTION)["config"]["config_id"]
+    i = ctx.input
+    dataset = read_table(i.dataset, DATASET)
+    best = read_json(i.selection, SELECTION)["config"]["config_id"]
     X, _ = dataset_arrays(dataset)
     held_out = (dataset["split"] != "train").to_numpy()
-    final, ball_only, other = (load_net(_stem(f)) for f in (ctx.input.final, ctx.input.ball_only,
-                                                            ctx.input.other_final))
-    X_other, _ = dataset_arrays(read_table(ctx.input.other_dataset, DATASET))
+    X_other, _ = dataset_arrays(read_table(i.other_dataset, DATASET))
     test = dataset[held_out]
-    parts = [prediction_table(test, predict(final, X[held_out]), "final"),
-             prediction_table(test, predict(ball_only, X[held_out][..., BALL_ONLY]), "ball_only"),
-             prediction_table(test, predict(other, X_other[held_out]), ctx.params["other_final"])]
-    for stem in (_stem(f) for f in ctx.input.cv_models if f"/{best}/" in f):
-        fold = int(stem.rsplit("fold", 1)[1])
+    parts = [prediction_table(test, predict_seed_mean(_nets(i.final), X[held_out]), "final"),
+             prediction_table(test, predict_seed_mean(_nets(i.ball_only), X[held_out][..., BALL_ONLY]),
+                              "ball_only"),
+             prediction_table(test, predict_seed_mean(_nets(i.other_final), X_other[held_out]),
+                              ctx.params["other_final"])]
+    for weights in (Path(f) for f in i.cv_models if Path(f).parent.name == best):
+        fold = int(weights.name.removesuffix(".safetensors").removeprefix("fold"))
         rows = ((dataset["split"] == "train") & (dataset["fold"] == fold)).to_numpy()
-        parts.append(prediction_table(dataset[rows], predict(load_net(stem), X[rows]), "final"))
+        parts.append(prediction_table(dataset[rows], predict(_nets([weights])[0], X[rows]), "final"))
     write_table(pd.concat(parts, ignore_index=True), ctx.output.predictions, PREDICTIONS, ctx.provenance())

@@ -1,4 +1,5 @@
-"""Rule train_final: the selected configuration refit on the whole training part; a ball-only baseline."""
+"""Rule train_final: one seed of a final model, the selected configuration refit on the whole training
+part (the ball-only baseline: fed the ball alone; final_{other inputs}: on the other kind of inputs)."""
 
 from pingpong.common.artifacts import read_json, read_table
 from pingpong.curation.dataset import dataset_arrays
@@ -13,9 +14,10 @@ def main(ctx):
     selection = read_json(ctx.input.selection, SELECTION)
     dataset = read_table(ctx.input.dataset, DATASET)
     X, Y = dataset_arrays(dataset[dataset["split"] == "train"])
-    if p["ball_only"]:  # the baseline: the same model and training, fed the ball alone
+    if p["ball_only"]:
         X = X[..., BALL_ONLY]
     settings = TrainSettings.from_config(p["settings"])
     net = refit(X, Y, selection["config"], selection["epochs"], settings, p["seed"])
-    save_net(net, {**selection["config"], "epochs": selection["epochs"], "ball_only": p["ball_only"]},
+    save_net(net, {**selection["config"], "epochs": selection["epochs"], "ball_only": p["ball_only"],
+                   "seed": p["seed"]},
              ctx.output.model.removesuffix(".safetensors"), ctx.provenance())

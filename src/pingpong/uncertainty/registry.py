@@ -26,7 +26,6 @@ from pingpong.common.config import Settings
 class UncertaintySettings(Settings):
     """The config's `uncertainty` section, typed (defaults: config/schema.yaml only)."""
 
-    ensemble_size: int
     coverage: float
     knn_k: int
     quantile_hidden: int
