@@ -15,6 +15,12 @@ def code(rule):
     return stage_code_hash(rule, workflow.basedir)
 
 
+def final_models(variant):
+    """The weights of a final model's seeds (learning.smk: the model predicts as their mean)."""
+    return expand("processed/models/{variant}/seed{seed}.safetensors", variant=variant,
+                  seed=range(config["training"]["seeds"]))
+
+
 def sessions():
     if config["source"] == "twin":
         return [f"s{i:02d}" for i in range(config["twin"]["n_sessions"])]

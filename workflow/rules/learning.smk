@@ -57,11 +57,6 @@ rule select_model:
 # the other kind of inputs (curation.smk), so Table 1 and the robot ablation compare causal and
 # zero-phase inputs on the same hits, each a mean of as many seeds.
 OTHER_FINAL = f"final_{OTHER_INPUTS}"
-SEEDS = range(TRAINING["seeds"])
-
-
-def final_models(variant):
-    return expand("processed/models/{variant}/seed{seed}.safetensors", variant=variant, seed=SEEDS)
 
 
 rule train_final:
