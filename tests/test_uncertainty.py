@@ -27,7 +27,7 @@ from pingpong.uncertainty.fit import (
     frame_rows,
     restore_estimators,
 )
-from pingpong.uncertainty.knn import fit_knn, predict_knn
+from pingpong.uncertainty.knn import fit_knn, nearest_rows, predict_knn
 from pingpong.uncertainty.metrics import (
     ause,
     coverage_by_width,
@@ -214,6 +214,24 @@ def test_conformal_quantile_monotone_in_alpha_and_non_negative(scores, a, b):
 def test_ause_is_non_negative(pairs):
     u, e = np.array(pairs).T
     assert ause(u, e) >= -1e-12
+
+
+@pytest.mark.parametrize("dims", [1, 79])
+def test_nearest_rows_are_scipys_cKDTree_neighbours(dims, monkeypatch):
+    from scipy.spatial import cKDTree
+
+    from pingpong.uncertainty import knn
+
+    monkeypatch.setattr(knn, "BLOCK_DISTANCES", 900 * 64)  # blocks of 64 query rows, the last one short
+    rng = np.random.default_rng(dims)
+    # rows with low-dimensional structure, as the frame features have: no near ties to break differently
+    reference, queries = (rng.normal(size=(n, min(dims, 5))) @ rng.normal(size=(min(dims, 5), dims))
+                          + 0.3 * rng.normal(size=(n, dims)) for n in (900, 700))
+    distance, expected = cKDTree(reference).query(queries, k=7)
+    found = nearest_rows(reference, queries, 7)
+    np.testing.assert_array_equal(found, expected)
+    np.testing.assert_allclose(np.linalg.norm(queries[:, None] - reference[found], axis=2), distance,
+                               rtol=1e-12)
 
 
 def test_knn_time_trend_and_features():
