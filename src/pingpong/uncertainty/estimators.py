@@ -49,7 +49,7 @@ def _from_json(by_key: dict) -> dict:
 
 @register
 class Ensemble(Estimator):
-    """The paper's: the std of the members' strike points (members refit with other seeds)."""
+    """The paper's: the std of the members' strike points (the final model's seeds; their mean predicts)."""
 
     name, paper = "ensemble", True
 
