@@ -8,12 +8,13 @@ BIN := $(VENV)/bin
 setup: $(VENV)/.installed
 
 # torch first, pinned: that exact version is the CPU wheel on the build machines; the project's
-# own `torch==2.13.0` requirement is then already met and pulls no CUDA packages.
-$(VENV)/.installed: pyproject.toml
+# own `torch==2.13.0` requirement is then already met and pulls no CUDA packages. Everything else at the
+# exact versions of constraints.txt, so that runs on different days give the same artifacts.
+$(VENV)/.installed: pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet torch==2.13.0
-	$(BIN)/pip install --quiet -e ".[test]"
+	$(BIN)/pip install --quiet -c constraints.txt -e ".[test]"
 	touch $@
 
 run: setup
