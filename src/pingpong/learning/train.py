@@ -168,8 +168,8 @@ def predict(net: AnticipationNet, X, lengths=None, batch_size: int = 500) -> np.
 def predict_seed_mean(nets, X, lengths=None) -> np.ndarray:
     """`predict` averaged over nets (the seeds of one configuration): a deep ensemble's point prediction
     (Lakshminarayanan et al. 2017). The strike point is linear in (a1, a2, b), so it is the seeds'
-    mean strike point too. On the default run of 2026-12-02 five seeds' mean had a median strike error
-    of 28.1 / 19.4 cm 10 / 1 frames before the hit against 31.8 / 24.7 cm for seed 0 alone
+    mean strike point too. On the default run of 2026-12-02 (152 test hits) five seeds' mean had a median
+    strike error of 26.0 / 17.6 cm 10 / 1 frames before the hit, the seeds alone 25.7-29.3 / 19.2-22.7 cm
     (analysis/seed_average.py)."""
     return np.mean([predict(net, X, lengths) for net in nets], axis=0)
 
