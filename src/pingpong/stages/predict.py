@@ -19,8 +19,12 @@ from pingpong.learning.schemas import PREDICTIONS, SELECTION
 from pingpong.learning.train import predict, predict_seed_mean
 
 
+def _net(weights):
+    return load_net(str(weights).removesuffix(".safetensors"))
+
+
 def _nets(weights_paths) -> list:
-    return [load_net(str(weights).removesuffix(".safetensors")) for weights in weights_paths]
+    return [_net(weights) for weights in weights_paths]
 
 
 def main(ctx):
@@ -37,7 +41,7 @@ def main(ctx):
              prediction_table(test, predict_seed_mean(_nets(i.other_final), X_other[held_out]),
                               ctx.params["other_final"])]
     for weights in (Path(f) for f in i.cv_models if Path(f).parent.name == best):
-        fold = int(weights.name.removesuffix(".safetensors").removeprefix("fold"))
+        fold = int(weights.stem.removeprefix("fold"))
         rows = ((dataset["split"] == "train") & (dataset["fold"] == fold)).to_numpy()
-        parts.append(prediction_table(dataset[rows], predict(_nets([weights])[0], X[rows]), "final"))
+        parts.append(prediction_table(dataset[rows], predict(_net(weights), X[rows]), "final"))
     write_table(pd.concat(parts, ignore_index=True), ctx.output.predictions, PREDICTIONS, ctx.provenance())
