@@ -140,7 +140,7 @@ def missing_joints(pose: pd.DataFrame, player: str, time_ns: np.ndarray, min_vie
     return ~np.isfinite(joints).all(axis=2) | ~(np.nan_to_num(views, nan=0.0) >= min_views)
 
 
-def assign_rallies(segments: pd.DataFrame, ball: pd.DataFrame, rally_gap_s: float = 1.0,
+def assign_rallies(segments: pd.DataFrame, ball: pd.DataFrame, rally_gap_s: float = 0.4,
                    fs_hz: float = 100.0) -> np.ndarray:
     """Rally id (0, 1, ...) of each candidate, in hit order: a new rally starts after a gap of more than
     rally_gap_s without the ball since the previous hit, or after a hit that was a fault (the 'fault'

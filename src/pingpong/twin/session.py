@@ -233,8 +233,8 @@ def simulate_rallies(n_rallies: int, rates: FaultRates, rng: np.random.Generator
     for rally in range(n_rallies):
         side = 1 if rally % 2 == 0 else -1  # the serve alternates
         # the pause before the serve: real ones last seconds (fetching a ball); compressed to 0.5-1.0 s,
-        # which the segmenter (0.15 s flight gaps) cannot tell from a long pause, to spend the cameras'
-        # frames on play: 10 % fewer frames than 1-2 s pauses, the same shots (one uniform draw either way)
+        # longer than the curation's rally gap (0.4 s), to spend the cameras' frames on play: 10 % fewer
+        # frames than 1-2 s pauses, the same shots (one uniform draw either way)
         t += rng.uniform(0.5, 1.0)
         # the server's toss: the ball drops into the hitting plane (a drive-like serve; see README)
         p = np.array([rng.uniform(-0.4, 0.4), _hitting_plane(rng, side), rng.uniform(0.15, 0.35)])
