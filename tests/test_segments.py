@@ -22,7 +22,7 @@ from pingpong.curation.labels import mirror_points
 from pingpong.curation.schemas import CANDIDATE_COLUMNS, CURATION_RULES, DATASET, EVENT_COLUMNS
 from pingpong.curation.segments import CurationRules, curate_segments, find_segments
 from pingpong.curation.tracks import JOINT_XYZ
-from pingpong.frames import FRAME_NS, MODEL_JOINT_IDS, N_INPUT, ROT_COLUMNS, TABLE_HALF_WIDTH
+from pingpong.frames import BALL_RADIUS, FRAME_NS, MODEL_JOINT_IDS, N_INPUT, ROT_COLUMNS, TABLE_HALF_WIDTH
 from pingpong.twin.session import FaultRates, ball_positions_at, simulate_session
 
 N_FRAMES = 40
@@ -127,9 +127,12 @@ def test_hits_and_bounces_found_within_a_frame(run):
     assert found.mean() >= 0.99 and (~real).mean() <= 0.01, (found.mean(), (~real).sum())
     bounces = truth.events[truth.events["kind"] == "bounce"]
     # bounces that a 100 Hz camera can see: falling at 1 m/s or faster (a dead ball's last hops are not),
-    # and not edge balls: within 1 cm of the table's side the seen bounce (2 mm noise) may fall off the
-    # table, which the detector does not count (1 of 199 on this session, 2.7 mm inside the edge)
-    bounces = bounces[np.abs(bounces["x"]) < TABLE_HALF_WIDTH - 0.01]
+    # not edge balls: within 1 cm of the table's side the seen bounce (2 mm noise) may fall off the
+    # table, which the detector does not count (1 of 199 on an earlier draw, 2.7 mm inside the edge),
+    # and not at the net: within a radius and 1 cm of it the rebound meets the net, so the ball does not
+    # rise again (1 of 198 on this draw, 2.6 cm from the net: z flat at 2.4 cm for 4 frames)
+    bounces = bounces[(np.abs(bounces["x"]) < TABLE_HALF_WIDTH - 0.01)
+                      & (np.abs(bounces["y"]) > BALL_RADIUS + 0.01)]
     vz = np.interp(bounces["time_ns"] - 2_000_000, truth.ball["time_ns"], truth.ball["vz"])
     found_bounces = events.loc[events["kind"] == "bounce", "time_ns"]
     found, _ = _matched(bounces["time_ns"][vz < -1.0], found_bounces)
