@@ -168,9 +168,9 @@ def predict(net: AnticipationNet, X, lengths=None, batch_size: int = 500) -> np.
 def predict_seed_mean(nets, X, lengths=None) -> np.ndarray:
     """`predict` averaged over nets (the seeds of one configuration): a deep ensemble's point prediction
     (Lakshminarayanan et al. 2017). The strike point is linear in (a1, a2, b), so it is the seeds'
-    mean strike point too. On the default run of 2026-12-02 (16 rallies a session, 124 test hits) five
-    seeds' mean had a median strike error of 27.4 / 19.1 cm 10 / 1 frames before the hit, the seeds alone
-    25.2-32.5 / 19.1-24.2 cm (analysis/seed_average.py)."""
+    mean strike point too. On the default run of 2026-12-02 (16 rallies a session, 121 test hits) five
+    seeds' mean had a median strike error of 26.6 / 23.2 cm 10 / 1 frames before the hit, the seeds alone
+    27.2-29.9 / 22.0-28.8 cm (analysis/seed_average.py)."""
     return np.mean([predict(net, X, lengths) for net in nets], axis=0)
 
 
