@@ -1,7 +1,8 @@
 # Learning: 5-fold cross-validated grid search (one job per configuration and fold), the refit of the
 # winner with several seeds, a ball-only baseline, per-frame predictions and the paper's Table 1.
 TRAINING = config["training"]
-TRAIN_SETTINGS = {k: TRAINING[k] for k in ("batch_size", "max_epochs", "patience", "min_delta")}
+TRAIN_SETTINGS = {k: TRAINING[k] for k in ("batch_size", "max_epochs", "patience", "min_delta",
+                                           "early_frame_weight")}
 TRAIN_SETTINGS["device"] = config["device"]
 GRID = {c["config_id"]: c for c in expand_grid(TRAINING["grid"])}
 FOLDS = range(TRAINING["n_folds"])

@@ -27,6 +27,7 @@ class TrainSettings(Settings):
     max_epochs: int
     patience: int
     min_delta: float
+    early_frame_weight: float
     device: str
 
 

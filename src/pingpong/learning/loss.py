@@ -8,6 +8,10 @@ y < 0 (after it). The loss compares predicted and true x at
 24 points in all, so one frame's loss is in metres summed over 24 points (a loss of 0.24 is a
 mean error of 1 cm per point). The batch loss is the mean over every (hit, frame) pair that the
 frame mask selects, so each counted prediction weighs the same whatever its hit's length.
+
+Beyond the paper, training may weigh the frames before t = -10 less (`late_frame_weights`): the robot acts
+on the predictions of t = -10 .. 0, and the earlier frames, whose inputs carry little of the strike point,
+otherwise fill the shared weights with their noise (measured in config/config.yaml).
 """
 
 import numpy as np
@@ -24,6 +28,7 @@ def path_design(y: np.ndarray) -> np.ndarray:
     return np.stack([np.where(y >= 0, y, 0.0), np.where(y < 0, y, 0.0), np.ones_like(y)])
 
 
+LATE_FRAMES = 11  # t = -10 .. 0: the frames the paper's robot acts on (alpha1 at t = -10, alpha2 at 0)
 _LOSS_DESIGN = torch.from_numpy(path_design(Y_LOSS))  # float64; cast to the prediction dtype on use
 
 
@@ -37,11 +42,24 @@ def frame_losses(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     return ((pred - target[:, None, :]) @ design).abs().sum(-1)
 
 
-def trajectory_loss(pred: torch.Tensor, target: torch.Tensor, frame_mask: torch.Tensor) -> torch.Tensor:
-    """Mean of `frame_losses` over the (hit, frame) pairs where frame_mask (N, T) is True.
+def late_frame_weights(n_frames: int, early_weight: float) -> torch.Tensor:
+    """(n_frames,) loss weights: 1 on the last LATE_FRAMES frames (t = -10 .. 0), early_weight before."""
+    weights = torch.full((n_frames,), float(early_weight))
+    weights[-LATE_FRAMES:] = 1.0
+    return weights
+
+
+def trajectory_loss(pred: torch.Tensor, target: torch.Tensor, frame_mask: torch.Tensor,
+                    frame_weights: torch.Tensor | None = None) -> torch.Tensor:
+    """Mean of `frame_losses` over the (hit, frame) pairs where frame_mask (N, T) is True, weighted by
+    frame_weights (T,) when given (a weighted mean: the weights' scale does not matter).
 
     Masked-out frames are dropped, not multiplied by zero, so NaN predictions there (padding)
     cannot leak into the loss.
     """
-    return frame_losses(pred, target)[frame_mask].mean()
+    losses = frame_losses(pred, target)[frame_mask]
+    if frame_weights is None:
+        return losses.mean()
+    weights = frame_weights.to(losses)[None, :].expand_as(frame_mask)[frame_mask]
+    return (losses * weights).sum() / weights.sum()
 

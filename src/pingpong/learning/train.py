@@ -16,7 +16,7 @@ import torch
 from tqdm.auto import tqdm
 
 from pingpong.frames import STRIKE_Y
-from pingpong.learning.loss import frame_losses, trajectory_loss
+from pingpong.learning.loss import frame_losses, late_frame_weights, trajectory_loss
 from pingpong.learning.models import AnticipationNet, prediction_frames, prediction_mask, valid_mask
 
 log = logging.getLogger(__name__)
@@ -83,14 +83,15 @@ def evaluate_loss(net: AnticipationNet, X, Y, lengths=None, batch_size: int = 50
 
 
 def train(net: AnticipationNet, X_train, Y_train, X_val, Y_val, lr: float, *, batch_size: int = 500,
-          max_epochs: int = 200, patience: int = 30, min_delta: float = 0.01, seed: int = 0,
-          device: str = "auto", lengths_train=None, lengths_val=None, progress: bool = True):
+          max_epochs: int = 200, patience: int = 30, min_delta: float = 0.01, early_frame_weight: float = 1.0,
+          seed: int = 0, device: str = "auto", lengths_train=None, lengths_val=None, progress: bool = True):
     """Fit `net` in place; returns (best_state, history).
 
     X (N, T, 39) float32, Y (N, 3); lengths (N,) real frames per sequence (None: no padding). The
     net's normaliser is fitted here on the training part (real frames only). AdamW with PyTorch's
-    defaults except lr; the loss is `trajectory_loss` over the 31 prediction frames. Early stopping
-    as `EarlyStopping`; at the end the weights of the lowest validation loss are loaded, and the net
+    defaults except lr; the loss is `trajectory_loss` over the 31 prediction frames, those before
+    t = -10 weighted by early_frame_weight (1: the paper's loss; `loss.late_frame_weights`). Early
+    stopping as `EarlyStopping` on the unweighted validation loss; at the end the weights of the lowest validation loss are loaded, and the net
     is left on the CPU in eval mode. best_state: those weights (CPU tensors). history: one dict per
     epoch: epoch, train_loss (mean over the epoch's batches), val_loss, seconds.
     """
@@ -105,6 +106,7 @@ def train(net: AnticipationNet, X_train, Y_train, X_val, Y_val, lr: float, *, ba
     X_dev, Y_dev = X_train.to(dev), Y_train.to(dev)
     L_dev = None if lengths_train is None else torch.as_tensor(lengths_train).to(dev)
     mask_dev = prediction_mask(lengths_train, X_train.shape[1]).expand(len(X_train), -1).to(dev)
+    weights_dev = late_frame_weights(X_train.shape[1], early_frame_weight).to(dev)
     optimiser = torch.optim.AdamW(net.parameters(), lr=lr)
     shuffle = torch.Generator().manual_seed(seed)
     stopper = EarlyStopping(patience, min_delta)
@@ -124,7 +126,7 @@ def train(net: AnticipationNet, X_train, Y_train, X_val, Y_val, lr: float, *, ba
                 for idx in batches:
                     idx = idx.to(dev)
                     out = net(X_dev[idx], None if L_dev is None else L_dev[idx])
-                    loss = trajectory_loss(out, Y_dev[idx], mask_dev[idx])
+                    loss = trajectory_loss(out, Y_dev[idx], mask_dev[idx], weights_dev)
                     optimiser.zero_grad(set_to_none=True)
                     loss.backward()
                     optimiser.step()
