@@ -2,16 +2,18 @@
 
 Out-of-fold median strike-point errors on the training hits of processed/dataset.parquet (the dataset's own
 5 folds), at 30, 20, 10, 5, 1 and 0 frames before the hit, for
-- the selected configuration (processed/models/selection.json) over several seeds, each seed alone and
-  their average;
+- the selected configuration (processed/models/selection.json), trained with config/config.yaml's
+  batch size and early-frame weight, over several seeds, each seed alone and their average; `--set KEY=VALUE`
+  changes an architecture key or the weight (e.g. `--set rnn_layers=2 rnn_hidden=32 early_frame_weight=1`,
+  the defaults before de4fc9f);
 - a ridge probe fitted per frame on that frame's 39 inputs, their change over 1 and 3 frames, and the same
   again times the stroke side (forehand +1, backhand -1: the sign of the paddle face's y), standardised.
 Run from the repository root after the select_model rule:
-`.venv/bin/python analysis/learning_probe.py [seeds]`.
+`.venv/bin/python analysis/learning_probe.py [--seeds N] [--set KEY=VALUE ...]`.
 """
 
+import argparse
 import json
-import sys
 
 import numpy as np
 import torch
@@ -42,10 +44,15 @@ def ridge_per_frame(X, strike, train_rows, lam=10.0) -> np.ndarray:
     return np.stack(out, axis=1)
 
 
-def main(seeds: int) -> None:
+def main(seeds: int, overrides: list[str]) -> None:
     torch.set_num_threads(1)
-    batch_size = yaml.safe_load(open("config/config.yaml"))["training"]["batch_size"]
+    training = yaml.safe_load(open("config/config.yaml"))["training"]
     cell = json.loads(open("processed/models/selection.json").read())["config"]
+    cell["early_frame_weight"] = training.get("early_frame_weight", 1.0)
+    for item in overrides:
+        key, value = item.split("=")
+        cell[key] = yaml.safe_load(value)
+    print("net:", {k: v for k, v in cell.items() if k != "config_id"})
     dataset = read_table("processed/dataset.parquet", DATASET)
     train_part = dataset[dataset["split"] == "train"]
     X, Y = dataset_arrays(train_part)
@@ -57,8 +64,8 @@ def main(seeds: int) -> None:
         preds["ridge"][val] = ridge_per_frame(X, strike, ~val)
         for seed in range(seeds):
             net = make_net(cell, seed)
-            train(net, X[~val], Y[~val], X[val], Y[val], cell["lr"], batch_size=batch_size, seed=seed,
-                  device="cpu", progress=False)
+            train(net, X[~val], Y[~val], X[val], Y[val], cell["lr"], batch_size=training["batch_size"],
+                  early_frame_weight=cell["early_frame_weight"], seed=seed, device="cpu", progress=False)
             preds[f"net seed {seed}"][val] = strike_points(predict(net, X[val]))
     preds["net, seeds averaged"] = np.mean([preds[f"net seed {s}"] for s in range(seeds)], axis=0)
     print(f"{len(X)} training hits, out of fold; median |strike error| cm at frames {FRAMES_SHOWN}; "
@@ -70,4 +77,8 @@ def main(seeds: int) -> None:
 
 
 if __name__ == "__main__":
-    main(int(sys.argv[1]) if len(sys.argv) > 1 else 3)
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=3)
+    parser.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE")
+    args = parser.parse_args()
+    main(args.seeds, args.set)

@@ -13,7 +13,15 @@ from safetensors import safe_open
 from pingpong.common.artifacts import Provenance
 from pingpong.frames import N_INPUT, N_PRED_FRAMES
 from pingpong.learning.grid import cv_folds, expand_grid, grid_summary, select_best
-from pingpong.learning.loss import Y_LOSS, Y_POST_BOUNCE, Y_PRE_BOUNCE, trajectory_loss
+from pingpong.learning.loss import (
+    LATE_FRAMES,
+    Y_LOSS,
+    Y_POST_BOUNCE,
+    Y_PRE_BOUNCE,
+    frame_losses,
+    late_frame_weights,
+    trajectory_loss,
+)
 from pingpong.learning.models import (
     FRAMES_BEFORE_HIT,
     AnticipationNet,
@@ -74,6 +82,37 @@ def test_loss_hand_computed():
     mask = torch.tensor([[True, True, False]])
     loss = trajectory_loss(pred, torch.zeros(1, 3), mask)
     assert loss.item() == pytest.approx(1.555, abs=1e-6)
+
+
+def test_weighted_loss_hand_computed():
+    # the hand-computed frames above, weighted 0.2 and 1 (the NaN frame masked out whatever its weight):
+    # (0.2 * 3.11 + 1 * 0) / (0.2 + 1) = 0.518333...
+    pred = torch.tensor([[[0.1, 0.2, 0.05], [0.0, 0.0, 0.0], [float("nan")] * 3]])
+    mask = torch.tensor([[True, True, False]])
+    loss = trajectory_loss(pred, torch.zeros(1, 3), mask, torch.tensor([0.2, 1.0, 5.0]))
+    assert loss.item() == pytest.approx(0.622 / 1.2, abs=1e-6)
+
+
+def test_late_frame_weights_mark_the_last_eleven_frames():
+    w = late_frame_weights(40, 0.2)
+    assert LATE_FRAMES == 11 and w.shape == (40,)
+    assert (w[-11:] == 1).all() and torch.allclose(w[:-11], torch.tensor(0.2))
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**31 - 1), st.floats(0.01, 1.0), st.floats(0.1, 10.0))
+def test_weighted_loss_is_a_weighted_mean(seed, early_weight, scale):
+    # equal weights give the paper's loss; any weights give the mean of the per-frame losses weighted
+    # by hand, whatever the weights' scale; masked-out frames never count
+    g = torch.Generator().manual_seed(seed)
+    pred, target = torch.randn(5, 40, 3, generator=g, dtype=torch.float64), torch.randn(5, 3, generator=g)
+    mask = torch.rand(5, 40, generator=g) < 0.7
+    mask[0, -1] = True
+    w = late_frame_weights(40, early_weight).double()
+    assert trajectory_loss(pred, target, mask, torch.ones(40)).item() == pytest.approx(
+        trajectory_loss(pred, target, mask).item(), rel=1e-12)
+    by_hand = (frame_losses(pred, target) * w * mask).sum() / (w * mask).sum()
+    assert trajectory_loss(pred, target, mask, scale * w).item() == pytest.approx(by_hand.item(), rel=1e-9)
 
 
 def _loss_by_loop(p, q):

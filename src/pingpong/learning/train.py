@@ -91,9 +91,10 @@ def train(net: AnticipationNet, X_train, Y_train, X_val, Y_val, lr: float, *, ba
     net's normaliser is fitted here on the training part (real frames only). AdamW with PyTorch's
     defaults except lr; the loss is `trajectory_loss` over the 31 prediction frames, those before
     t = -10 weighted by early_frame_weight (1: the paper's loss; `loss.late_frame_weights`). Early
-    stopping as `EarlyStopping` on the unweighted validation loss; at the end the weights of the lowest validation loss are loaded, and the net
-    is left on the CPU in eval mode. best_state: those weights (CPU tensors). history: one dict per
-    epoch: epoch, train_loss (mean over the epoch's batches), val_loss, seconds.
+    stopping as `EarlyStopping` on the unweighted validation loss; at the end the weights of the lowest
+    validation loss are loaded, and the net is left on the CPU in eval mode. best_state: those weights
+    (CPU tensors). history: one dict per epoch: epoch, train_loss (mean over the epoch's batches, weighted),
+    val_loss, seconds.
     """
     X_train, Y_train, X_val, Y_val = (torch.as_tensor(a, dtype=torch.float32)
                                       for a in (X_train, Y_train, X_val, Y_val))
