@@ -3,9 +3,10 @@
 Out-of-fold median strike-point errors on the training hits of processed/dataset.parquet (the dataset's own
 5 folds), at 30, 20, 10, 5, 1 and 0 frames before the hit, for
 - the selected configuration (processed/models/selection.json), trained with config/config.yaml's
-  batch size and early-frame weight, over several seeds, each seed alone and their average; `--set KEY=VALUE`
-  changes an architecture key or the weight (e.g. `--set rnn_layers=2 rnn_hidden=32 early_frame_weight=1`,
-  the defaults before de4fc9f);
+  training settings (batch size, early stopping, early-frame weight, reflection), over several seeds, each
+  seed alone and their average; `--set KEY=VALUE` changes an architecture key or a setting (e.g. `--set
+  reflect_augment=false`, the default before this key; `--set rnn_layers=2 rnn_hidden=32
+  early_frame_weight=1 reflect_augment=false`, before de4fc9f);
 - a ridge probe fitted per frame on that frame's 39 inputs, their change over 1 and 3 frames, and the same
   again times the stroke side (forehand +1, backhand -1: the sign of the paddle face's y), standardised.
 Run from the repository root after the select_model rule:
@@ -44,29 +45,36 @@ def ridge_per_frame(X, strike, train_rows, lam=10.0) -> np.ndarray:
     return np.stack(out, axis=1)
 
 
+SETTING_KEYS = ("batch_size", "max_epochs", "patience", "min_delta", "early_frame_weight", "reflect_augment")
+
+
 def main(seeds: int, overrides: list[str]) -> None:
     torch.set_num_threads(1)
     training = yaml.safe_load(open("config/config.yaml"))["training"]
+    schema = yaml.safe_load(open("config/schema.yaml"))["properties"]["training"]["properties"]
+    settings = {k: training.get(k, schema[k]["default"]) for k in SETTING_KEYS}
     cell = json.loads(open("processed/models/selection.json").read())["config"]
-    cell["early_frame_weight"] = training.get("early_frame_weight", 1.0)
     for item in overrides:
         key, value = item.split("=")
-        cell[key] = yaml.safe_load(value)
-    print("net:", {k: v for k, v in cell.items() if k != "config_id"})
+        (settings if key in SETTING_KEYS else cell)[key] = yaml.safe_load(value)
+    print("net:", {k: v for k, v in cell.items() if k != "config_id"}, "training:", settings)
     dataset = read_table("processed/dataset.parquet", DATASET)
     train_part = dataset[dataset["split"] == "train"]
     X, Y = dataset_arrays(train_part)
     folds = train_part["fold"].to_numpy()
     strike = (Y[:, 1] * -1.40 + Y[:, 2]).astype(float)
     preds = {name: np.zeros((len(X), 31)) for name in ["ridge", *(f"net seed {s}" for s in range(seeds))]}
+    epochs = []
     for fold in np.unique(folds):
         val = folds == fold
         preds["ridge"][val] = ridge_per_frame(X, strike, ~val)
         for seed in range(seeds):
             net = make_net(cell, seed)
-            train(net, X[~val], Y[~val], X[val], Y[val], cell["lr"], batch_size=training["batch_size"],
-                  early_frame_weight=cell["early_frame_weight"], seed=seed, device="cpu", progress=False)
+            _, history = train(net, X[~val], Y[~val], X[val], Y[val], cell["lr"], seed=seed, device="cpu",
+                               progress=False, **settings)
+            epochs.append(len(history))
             preds[f"net seed {seed}"][val] = strike_points(predict(net, X[val]))
+    print(f"epochs run per fit: mean {np.mean(epochs):.1f}, {sum(epochs)} in all")
     preds["net, seeds averaged"] = np.mean([preds[f"net seed {s}"] for s in range(seeds)], axis=0)
     print(f"{len(X)} training hits, out of fold; median |strike error| cm at frames {FRAMES_SHOWN}; "
           f"the training mean: {100 * np.median(np.abs(strike - strike.mean())):.1f} cm")

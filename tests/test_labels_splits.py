@@ -17,11 +17,13 @@ from pingpong.curation.labels import (
     mirror_labels,
     mirror_points,
     mirror_rotations,
+    reflect_frames,
+    reflect_labels,
     strike_point_from_labels,
     x_of_y,
 )
 from pingpong.curation.splits import split_by_rally
-from pingpong.frames import N_INPUT, STRIKE_Y, region_of
+from pingpong.frames import MODEL_JOINTS, N_INPUT, STRIKE_Y, region_of
 from pingpong.twin.ball import aim_shots, simulate_flight, stop_at_y
 
 finite = st.floats(-5, 5, allow_nan=False)
@@ -69,6 +71,42 @@ def test_mirror_is_a_rotation_by_pi_about_z_and_frames_follow_the_layout():
     assert np.allclose(mirror_points(face_point), out[24:27] + out[27:36].reshape(3, 3) @ [0.0, 0.0, 0.1])
     with pytest.raises(ValueError, match="39"):
         mirror_frames(np.zeros(38))
+
+
+# ---------------------------------------------------------------- reflection (training augmentation)
+
+@given(arrays(float, (4, N_INPUT), elements=finite))
+def test_reflecting_frames_twice_is_the_identity(frames):
+    assert np.allclose(reflect_frames(reflect_frames(frames)), frames, atol=0)
+
+
+@given(st.integers(0, 2**32 - 1))
+def test_reflection_is_x_to_minus_x_for_every_point_of_the_body_and_paddle(seed):
+    rng = np.random.default_rng(seed)
+    frame = rng.normal(size=N_INPUT)
+    R = Rotation.random(random_state=seed).as_matrix()
+    frame[27:36] = R.ravel()
+    out = reflect_frames(frame)
+    joints, reflected = frame[:24].reshape(8, 3), out[:24].reshape(8, 3)
+    for k, name in enumerate(MODEL_JOINTS):  # the right shoulder's place is now the left's, x negated
+        other = {"R": "L", "L": "R"}[name[0]] + name[1:]
+        assert np.allclose(reflected[MODEL_JOINTS.index(other)], joints[k] * [-1, 1, 1])
+    assert np.allclose(out[[24, 25, 26, 36, 37, 38]], frame[[24, 25, 26, 36, 37, 38]] * [-1, 1, 1, -1, 1, 1])
+    R2 = out[27:36].reshape(3, 3)
+    assert np.isclose(np.linalg.det(R2), 1.0) and np.allclose(R2 @ R2.T, np.eye(3))
+    # the tip (body x) and a point on the face's normal (body z) land on the reflected world points
+    for body_point in ([0.1, 0.0, 0.0], [0.0, 0.0, 0.1]):
+        world = frame[24:27] + R @ body_point
+        assert np.allclose(world * [-1, 1, 1], out[24:27] + R2 @ body_point)
+
+
+@given(slopes, slopes, st.floats(-0.7, 0.7))
+def test_reflected_labels_describe_the_reflected_path(a1, a2, b):
+    y, x = two_line_path(a1, a2, b)
+    assert np.allclose(x_of_y(*reflect_labels([a1, a2, b]), y), -x)
+    assert np.allclose(reflect_frames(np.array([[0.3, 1.2, 0.2]])), [[-0.3, 1.2, 0.2]])  # ball-only frames
+    with pytest.raises(ValueError, match="39"):
+        reflect_frames(np.zeros(38))
 
 
 # ---------------------------------------------------------------- labels

@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 from safetensors import safe_open
 
 from pingpong.common.artifacts import Provenance
+from pingpong.curation.labels import reflect_frames
 from pingpong.frames import N_INPUT, N_PRED_FRAMES
 from pingpong.learning.grid import cv_folds, expand_grid, grid_summary, select_best
 from pingpong.learning.loss import (
@@ -39,6 +40,7 @@ from pingpong.learning.train import (
     predict_seed_mean,
     strike_points,
     train,
+    with_reflections,
 )
 
 TINY = dict(rnn_hidden=16, rnn_layers=2, mlp_hidden=16, mlp_layers=1)
@@ -243,6 +245,23 @@ def test_training_is_deterministic_on_cpu():
     a, b, c = _trained_weights(0), _trained_weights(0), _trained_weights(1)
     assert all(torch.equal(a[k], b[k]) for k in a)
     assert not all(torch.equal(a[k], c[k]) for k in a)  # the seed does reach shuffling/dropout
+
+
+def test_reflection_augment_trains_on_the_hits_and_their_reflections():
+    rng = np.random.default_rng(8)
+    X, Y = _random_set(rng, 6)
+    lengths = np.array([40, 35, 31, 40, 33, 38])
+    Xa, Ya, La = with_reflections(X, Y, lengths)
+    np.testing.assert_array_equal(Xa[:6], X)
+    np.testing.assert_allclose(Xa[6:], reflect_frames(X), rtol=1e-6)
+    np.testing.assert_array_equal(Ya[6:], -Y)
+    np.testing.assert_array_equal(La, np.tile(lengths, 2))
+    net = AnticipationNet("gru", **TINY)
+    train(net, X, Y, X, Y, lr=1e-3, max_epochs=1, seed=0, device="cpu", lengths_train=lengths,
+          lengths_val=lengths, reflect_augment=True, progress=False)
+    real = np.concatenate([Xa[n, 40 - length:] for n, length in enumerate(La)]).astype(np.float64)
+    np.testing.assert_allclose(net.normaliser.mean.numpy(), real.mean(0), rtol=1e-5, atol=1e-6)
+    assert abs(net.normaliser.mean[36].item()) < 1e-6  # the ball's x: a hit and its reflection cancel
 
 
 def test_normaliser_uses_training_real_frames_only():

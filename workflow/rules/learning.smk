@@ -2,7 +2,7 @@
 # winner with several seeds, a ball-only baseline, per-frame predictions and the paper's Table 1.
 TRAINING = config["training"]
 TRAIN_SETTINGS = {k: TRAINING[k] for k in ("batch_size", "max_epochs", "patience", "min_delta",
-                                           "early_frame_weight")}
+                                           "early_frame_weight", "reflect_augment")}
 TRAIN_SETTINGS["device"] = config["device"]
 GRID = {c["config_id"]: c for c in expand_grid(TRAINING["grid"])}
 FOLDS = range(TRAINING["n_folds"])

@@ -7,6 +7,10 @@ RShoulder is still their right shoulder, no joint relabelling), paddle orientati
 rotations (det +1), spin (a pseudovector) and the Magnus force keep their physics, and gravity and the
 table (symmetric under it) are unchanged. A reflection would turn right-handers into left-handers and
 flip sidespin. Under the rotation the labels map as (a1, a2, b) -> (a2, a1, -b) (mirror_labels).
+
+That reflection, x -> -x, is still a hit physics allows: the same stroke by a player of the other hand,
+with mirrored spin (mechanics is mirror symmetric). `reflect_frames` and `reflect_labels` make it, for
+training-set augmentation only (pingpong.learning.train); curation never uses them.
 """
 
 import numpy as np
@@ -18,6 +22,10 @@ N_POINTS = len(MODEL_JOINTS) + 1  # the joints and the paddle position lead the 
 PADDLE_POSITION = slice(3 * (N_POINTS - 1), 3 * N_POINTS)
 PADDLE_ROTATION = slice(3 * N_POINTS, 3 * N_POINTS + 9)
 BALL = slice(N_INPUT - 3, N_INPUT)
+# x -> -x swaps the body's sides: each model joint's index after the reflection
+REFLECTED_JOINTS = tuple(MODEL_JOINTS.index({"R": "L", "L": "R"}[j[0]] + j[1:]) for j in MODEL_JOINTS)
+REFLECT = np.diag([-1.0, 1.0, 1.0])  # table frame
+REFLECT_PADDLE_BODY = np.diag([1.0, -1.0, 1.0])  # keeps handle-to-tip and the face normal (columns 0, 2)
 
 
 def mirror_points(points) -> np.ndarray:
@@ -44,6 +52,31 @@ def mirror_frames(frames) -> np.ndarray:
     out[..., PADDLE_ROTATION] = mirror_rotations(rotation).reshape(*lead, 9)
     out[..., BALL] = mirror_points(frames[..., BALL])
     return out
+
+
+def reflect_frames(frames) -> np.ndarray:
+    """Model input frames (..., 39) of the left-right reflected hit (x -> -x): right and left joints
+    swap, points negate x, the paddle keeps a proper rotation (REFLECT @ R @ REFLECT_PADDLE_BODY).
+    Frames of the ball alone (..., 3), the ball-only baseline's, negate x."""
+    frames = np.asarray(frames, float)
+    if frames.shape[-1] == 3:
+        return frames @ REFLECT
+    if frames.shape[-1] != N_INPUT:
+        raise ValueError(f"expected frames of {N_INPUT} values (or the ball's 3), got shape {frames.shape}")
+    lead = frames.shape[:-1]
+    points = frames[..., :3 * N_POINTS].reshape(*lead, N_POINTS, 3)
+    order = [*REFLECTED_JOINTS, N_POINTS - 1]  # joints swapped, the paddle position last as before
+    out = frames.copy()
+    out[..., :3 * N_POINTS] = (points[..., order, :] @ REFLECT).reshape(*lead, 3 * N_POINTS)
+    rotation = frames[..., PADDLE_ROTATION].reshape(*lead, 3, 3)
+    out[..., PADDLE_ROTATION] = (REFLECT @ rotation @ REFLECT_PADDLE_BODY).reshape(*lead, 9)
+    out[..., BALL] = frames[..., BALL] @ REFLECT
+    return out
+
+
+def reflect_labels(labels) -> np.ndarray:
+    """Labels (..., 3) = (a1, a2, b) of the reflected path: x -> -x negates all three."""
+    return -np.asarray(labels, float)
 
 
 def mirror_labels(a1, a2, b):

@@ -28,6 +28,7 @@ class TrainSettings(Settings):
     patience: int
     min_delta: float
     early_frame_weight: float
+    reflect_augment: bool
     device: str
 
 
