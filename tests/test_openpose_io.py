@@ -17,7 +17,7 @@ from pingpong.io.openpose_json import (
     to_body25,
     write_keypoints_json,
 )
-from pingpong.twin.openpose_sim import simulate_openpose
+from pingpong.twin.openpose_sim import simulate_openpose, simulate_openpose_frames
 from pingpong.twin.rig import make_rig
 
 OPENPOSE_KEYS = ["person_id", "pose_keypoints_2d", "face_keypoints_2d", "hand_left_keypoints_2d",
@@ -230,3 +230,25 @@ def test_out_of_image_joints_are_zero_and_swaps_happen():
     assert right_wrist_near_left
     behind = simulate_openpose(camera, [player - [0.0, 10.0, 0.0]], rng)  # behind the camera
     assert behind.shape == (0, 25, 3)
+
+
+def test_frames_at_once_drop_absent_people_and_hide_the_occluded():
+    rng = np.random.default_rng(3)
+    camera = make_rig(rng)[2]  # at the -y end, looking along +y
+    far_player = STANDING + [0.0, 2.4, 0.0]
+    in_front = far_player + 0.2 * (camera.center - far_player.mean(axis=0))  # on the line of sight: covers it
+    beside = far_player + [1.5, 0.0, 0.0]
+    bodies = np.stack([np.stack([far_player] * 4), np.stack([in_front, beside, beside, beside])])
+    bodies[1, 3] = np.nan  # the second person leaves in the last frame
+    frames = simulate_openpose_frames(camera, bodies, rng, swap_rate=0.0)
+    assert [len(f) for f in frames] == [2, 2, 2, 1]
+    truths = camera.project(far_player), camera.project(in_front)
+
+    def player_confidence(people):
+        def off(p, t):  # median pixel distance of a person's detected joints to a projection
+            return np.median(np.linalg.norm(p[p[:, 2] > 0, :2] - t[p[:, 2] > 0], axis=1))
+        k = int(np.argmin([off(p, truths[0]) - off(p, truths[1]) for p in people]))
+        return people[k][:, 2][people[k][:, 2] > 0]
+
+    assert np.median(player_confidence(frames[0])) < 0.45  # behind the nearer person: low confidences
+    assert np.median(player_confidence(frames[1])) > 0.5  # in the clear

@@ -19,46 +19,61 @@ OCCLUDER_RADIUS = 0.15  # m, a person's width around the line of their joints, f
 MIN_JOINTS = 6
 
 
-def _occluded(px: np.ndarray, depth: np.ndarray, others_px: list, others_depth: list, f: float) -> np.ndarray:
-    """(25,) True where a nearer person's joints cover a joint's pixel (within their projected width)."""
-    hidden = np.zeros(len(px), bool)
-    for opx, odepth in zip(others_px, others_depth, strict=True):
-        valid = odepth > 0.1
-        if not valid.any():
-            continue
-        dist = np.linalg.norm(px[:, None, :] - opx[None, valid, :], axis=2)
-        width = f * OCCLUDER_RADIUS / odepth[valid]
-        nearer = odepth[valid][None, :] < depth[:, None]
-        hidden |= ((dist < width[None, :]) & nearer).any(axis=1)
+def _occluded(px: np.ndarray, depth: np.ndarray, f: float) -> np.ndarray:
+    """(P, n, 25) True where a nearer person's joints cover a joint's pixel (within their projected width).
+
+    px (P, n, 25, 2), depth (P, n, 25): every person's projected joints per frame (NaN: absent)."""
+    hidden = np.zeros(depth.shape, bool)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        width = f * OCCLUDER_RADIUS / depth  # (P, n, 25) each joint's half-width as an occluder, px
+        for i in range(len(px)):
+            for k in range(len(px)):
+                if k == i:
+                    continue
+                dist = np.linalg.norm(px[i][:, :, None] - px[k][:, None], axis=-1)  # (n, 25 of i, 25 of k)
+                covers = (dist < width[k][:, None]) & (depth[k][:, None] < depth[i][:, :, None]) \
+                    & (depth[k][:, None] > 0.1)
+                hidden[i] |= covers.any(axis=2)
     return hidden
+
+
+def simulate_openpose_frames(camera: Camera, people_joints: np.ndarray, rng: np.random.Generator,
+                             swap_rate: float = 0.01) -> list[np.ndarray]:
+    """OpenPose's people (p, 25, 3) [x px, y px, confidence] for each of n frames; absent joints are 0, 0, 0.
+
+    people_joints: true BODY_25 joints (P, n, 25, 3) per person (players and bystanders) and frame, table
+    frame; a person whose joints are all NaN in a frame is not there. Vectorised over frames (per frame
+    the work is a few dozen tiny array operations).
+    """
+    joints = np.asarray(people_joints, float)
+    n_people, n = joints.shape[:2]
+    present = ~np.isnan(joints).all(axis=-1).all(axis=-1)  # (P, n)
+    flat = np.where(present[..., None, None], joints, 0.0).reshape(-1, 3)
+    px = camera.project(flat).reshape(n_people, n, 25, 2)
+    depth = camera.depth(flat).reshape(n_people, n, 25)
+    px[~present], depth[~present] = np.nan, np.nan
+    hidden = _occluded(px, depth, camera.K[0, 0])
+    with np.errstate(invalid="ignore"):
+        inside = (depth > 0.1) & (px[..., 0] >= 0) & (px[..., 0] < camera.width) & (px[..., 1] >= 0) \
+            & (px[..., 1] < camera.height)
+    sigma = 3.0 * camera.width / 1440
+    scale = _JOINT_NOISE * np.where(hidden, 2.0, 1.0)
+    noisy = px + rng.normal(0.0, 1.0, px.shape) * (sigma * scale)[..., None]
+    confidence = np.where(hidden, rng.uniform(0.05, 0.4, hidden.shape), rng.uniform(0.55, 0.95, hidden.shape))
+    detected = inside & ~(hidden & (rng.random(hidden.shape) < 0.5)) & (rng.random(hidden.shape) > 0.02)
+    people = np.where(detected[..., None], np.concatenate([noisy, confidence[..., None]], axis=-1), 0.0)
+    kept = present & (detected.sum(axis=-1) >= MIN_JOINTS)
+    for i, frame in zip(*np.nonzero(kept & (rng.random(kept.shape) < swap_rate)), strict=True):
+        right, left = LIMB_SWAPS[rng.integers(len(LIMB_SWAPS))]
+        people[i, frame, list(right + left)] = people[i, frame, list(left + right)]
+    order = np.argsort(np.where(kept, rng.random(kept.shape), np.inf), axis=0)  # a random order per frame
+    return [people[order[:count, frame], frame] for frame, count in enumerate(kept.sum(axis=0))]
 
 
 def simulate_openpose(camera: Camera, people_joints: list[np.ndarray], rng: np.random.Generator,
                       swap_rate: float = 0.01) -> np.ndarray:
-    """OpenPose's people (P, 25, 3) [x px, y px, confidence] for one frame; absent joints are 0, 0, 0.
-
-    people_joints: true BODY_25 joints (25, 3) per person (players and bystanders), table frame.
-    """
-    sigma = 3.0 * camera.width / 1440
-    f = camera.K[0, 0]
-    projected = [camera.project(j) for j in people_joints]
-    depths = [camera.depth(j) for j in people_joints]
-    out = []
-    for i, (px, depth) in enumerate(zip(projected, depths, strict=True)):
-        others = [k for k in range(len(people_joints)) if k != i]
-        hidden = _occluded(px, depth, [projected[k] for k in others], [depths[k] for k in others], f)
-        inside = (depth > 0.1) & (px[:, 0] >= 0) & (px[:, 0] < camera.width) & (px[:, 1] >= 0) \
-            & (px[:, 1] < camera.height)
-        scale = _JOINT_NOISE * np.where(hidden, 2.0, 1.0)
-        noisy = px + rng.normal(0.0, 1.0, px.shape) * (sigma * scale)[:, None]
-        confidence = np.where(hidden, rng.uniform(0.05, 0.4, 25), rng.uniform(0.55, 0.95, 25))
-        detected = inside & ~(hidden & (rng.random(25) < 0.5)) & (rng.random(25) > 0.02)
-        person = np.where(detected[:, None], np.column_stack([noisy, confidence]), 0.0)
-        if detected.sum() < MIN_JOINTS:
-            continue
-        if rng.random() < swap_rate:
-            right, left = LIMB_SWAPS[rng.integers(len(LIMB_SWAPS))]
-            person[list(right + left)] = person[list(left + right)]
-        out.append(person)
-    order = rng.permutation(len(out))
-    return np.array([out[k] for k in order]).reshape(-1, 25, 3)
+    """OpenPose's people (P, 25, 3) for one frame of true BODY_25 joints (25, 3) per person
+    (`simulate_openpose_frames` of that one frame)."""
+    if not people_joints:
+        return np.zeros((0, 25, 3))
+    return simulate_openpose_frames(camera, np.stack(people_joints)[:, None], rng, swap_rate)[0]
