@@ -25,13 +25,13 @@ def _occluded(px: np.ndarray, depth: np.ndarray, f: float) -> np.ndarray:
     px (P, n, 25, 2), depth (P, n, 25): every person's projected joints per frame (NaN: absent)."""
     hidden = np.zeros(depth.shape, bool)
     with np.errstate(invalid="ignore", divide="ignore"):
-        width = f * OCCLUDER_RADIUS / depth  # (P, n, 25) each joint's half-width as an occluder, px
+        width2 = (f * OCCLUDER_RADIUS / depth) ** 2  # (P, n, 25) squared occluder half-width, px^2
         for i in range(len(px)):
             for k in range(len(px)):
                 if k == i:
                     continue
-                dist = np.linalg.norm(px[i][:, :, None] - px[k][:, None], axis=-1)  # (n, 25 of i, 25 of k)
-                covers = (dist < width[k][:, None]) & (depth[k][:, None] < depth[i][:, :, None]) \
+                dist2 = ((px[i][:, :, None] - px[k][:, None]) ** 2).sum(axis=-1)  # (n, 25 of i, 25 of k)
+                covers = (dist2 < width2[k][:, None]) & (depth[k][:, None] < depth[i][:, :, None]) \
                     & (depth[k][:, None] > 0.1)
                 hidden[i] |= covers.any(axis=2)
     return hidden
