@@ -21,7 +21,7 @@ from pingpong.reports.uncertainty import ORACLE_FRAMES
 from pingpong.reports.uncertainty_oracle import HIT_KEYS, join_test_hits, read_oracles
 from pingpong.uncertainty.metrics import spearman, within_frames
 
-SETTINGS = ((16, 30), (32, 60))  # (GRU width, epochs)
+SETTINGS = ((16, 30), (32, 60), (64, 60))  # (GRU width, epochs)
 
 
 def oracle_matrix(dataset: pd.DataFrame) -> np.ndarray:

@@ -87,7 +87,7 @@ def with_reflections(X, Y, lengths=None):
     """The hits (X (N, T, C), Y (N, 3), lengths (N,) or None) followed by their left-right reflections
     (pingpong.curation.labels.reflect_frames, reflect_labels): twice the hits, a player of each hand.
 
-    Beyond the paper. On the 434 training hits of the default run of 67f01fe (GRU 1 x 64, early frames
+    Beyond the paper. On the 434 training hits of the default run of de4fc9f (GRU 1 x 64, early frames
     weighted 0.2, out of fold, the mean of 3 seeds) the median strike error 10 / 5 / 1 frame(s) before the
     hit fell from 23.1 / 20.0 / 17.4 cm to 21.4 / 16.7 / 15.2 cm; 30 frames before it rose from 30.4 to
     33.1 cm, where the body's handedness is most of what the inputs show.
