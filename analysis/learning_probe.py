@@ -21,6 +21,7 @@ import torch
 import yaml
 
 from pingpong.common.artifacts import read_table
+from pingpong.common.config import validate_config
 from pingpong.curation.dataset import dataset_arrays
 from pingpong.curation.schemas import DATASET
 from pingpong.learning.cv import make_net
@@ -50,9 +51,8 @@ SETTING_KEYS = ("batch_size", "max_epochs", "patience", "min_delta", "early_fram
 
 def main(seeds: int, overrides: list[str]) -> None:
     torch.set_num_threads(1)
-    training = yaml.safe_load(open("config/config.yaml"))["training"]
-    schema = yaml.safe_load(open("config/schema.yaml"))["properties"]["training"]["properties"]
-    settings = {k: training.get(k, schema[k]["default"]) for k in SETTING_KEYS}
+    config = validate_config(yaml.safe_load(open("config/config.yaml")), "config/schema.yaml")
+    settings = {k: config["training"][k] for k in SETTING_KEYS}
     cell = json.loads(open("processed/models/selection.json").read())["config"]
     for item in overrides:
         key, value = item.split("=")

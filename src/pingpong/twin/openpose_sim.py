@@ -1,4 +1,4 @@
-"""What OpenPose reports for one camera frame, from the true 3D joints of everyone in view.
+"""What OpenPose reports for a camera's frames, from the true 3D joints of everyone in view.
 
 Per person: project the BODY_25 joints (with distortion), add pixel noise (std 3 px at 1440 px
 width, scaled with the image width, 1.5x at wrists and ankles), give confidences (0.55-0.95 when
