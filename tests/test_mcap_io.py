@@ -4,13 +4,24 @@
 import cv2
 import numpy as np
 import pytest
+from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
 from mcap.reader import make_reader
+from mcap.writer import IndexType
+from mcap.writer import Writer as McapWriter
 from mcap_protobuf.decoder import DecoderFactory
+from mcap_protobuf.schema import build_file_descriptor_set
 from scipy.spatial.transform import Rotation
 
 from pingpong.common.patterns import TABLE_MARKERS
 from pingpong.frames import FRAME_NS
-from pingpong.io.mcap_io import CameraStreamWriter, McapDamagedError, read_camera_stream, read_optitrack
+from pingpong.io.mcap_io import (
+    CameraStreamWriter,
+    McapDamagedError,
+    _indexed_times,
+    read_camera_stream,
+    read_camera_times,
+    read_optitrack,
+)
 from pingpong.twin.optitrack_sim import table_to_optitrack, write_optitrack_session
 
 T0 = 1_700_000_000_000_000_000  # an epoch in ns
@@ -130,3 +141,28 @@ def test_optitrack_session_round_trip(tmp_path):
     means = np.array([bodies[f"table_marker_{i}"][["x", "y", "z"]].mean().to_numpy() for i in range(4)])
     R_est, t_est = kabsch(TABLE_MARKERS, means)
     assert np.abs(R_est - R).max() < 1e-3 and np.abs(t_est - t).max() < 5e-4
+
+
+@pytest.mark.parametrize("index_types", [IndexType.ALL, IndexType.NONE])
+def test_camera_times_from_the_index_are_the_streamed_times(tmp_path, index_types):
+    """Two interleaved cameras in small chunks: each topic's times, in file order, come from the message
+    indexes where the file has them (no frame read) and from reading it through where it has none."""
+    path = tmp_path / "two.mcap"
+    with open(path, "wb") as f:
+        writer = McapWriter(f, chunk_size=3000, index_types=index_types)
+        writer.start()
+        schema = writer.register_schema("foxglove.CompressedImage", "protobuf",
+                                        build_file_descriptor_set(CompressedImage).SerializeToString())
+        channels = {topic: writer.register_channel(topic, "protobuf", schema) for topic in ("/a", "/b")}
+        expected = {"/a": [], "/b": []}
+        for i in range(120):
+            topic, t = ("/a", "/b")[i % 3 == 0], T0 + i * FRAME_NS + (i % 5) * 1000
+            message = CompressedImage(frame_id=topic, data=jpeg(i) + bytes(500 * (i % 4)), format="jpeg")
+            writer.add_message(channels[topic], log_time=t, data=message.SerializeToString(), publish_time=t)
+            expected[topic].append(t)
+        writer.finish()
+    assert (_indexed_times(path, "foxglove.CompressedImage", "/a") is None) == (index_types == IndexType.NONE)
+    for topic, times in expected.items():
+        assert read_camera_times(path, topic=topic).tolist() == times
+        streamed = [t for t, _ in read_camera_stream(path, topic=topic)]
+        assert streamed == times

@@ -18,6 +18,7 @@ warning naming the file and the last good log_time, or raise `McapDamagedError` 
 """
 
 import contextlib
+import io
 import os
 import warnings
 from collections.abc import Iterator
@@ -28,7 +29,7 @@ import pandas as pd
 from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
 from foxglove_schemas_protobuf.PoseInFrame_pb2 import PoseInFrame
 from mcap.reader import NonSeekingReader, SeekingReader
-from mcap.records import Channel, Schema
+from mcap.records import Channel, MessageIndex, Schema
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType
 from mcap_protobuf.writer import Writer as ProtobufWriter
@@ -189,10 +190,53 @@ def read_optitrack(path: str | os.PathLike, strict: bool = False) -> dict[str, p
 
 
 def read_camera_times(path: str | os.PathLike, strict: bool = False, topic: str | None = None) -> np.ndarray:
-    """log_time (ns) of every frame of a camera file, without decoding the images: the camera clock."""
-    return np.array([t for _, t, _ in _iter_messages(Path(path), "foxglove.CompressedImage", strict,
-                                                     "foxglove.CompressedImage frames", topic=topic)],
-                    dtype=np.int64)
+    """log_time (ns) of every frame of a camera file, without decoding the images: the camera clock.
+
+    A complete file's times come from its index (summary and message indexes), without reading a frame:
+    0.01 s instead of 4 s for a twin camera's 420 MB. Damage inside a chunk's frames is then left to the
+    readers of the frames (detection reads every byte, CRCs checked). A file without an index (truncated,
+    or written without one) is read from the start, stopping at damage as read_camera_stream does.
+    """
+    path = Path(path)
+    times = _indexed_times(path, "foxglove.CompressedImage", topic)
+    if times is None:
+        times = [t for _, t, _ in _iter_messages(path, "foxglove.CompressedImage", strict,
+                                                 "foxglove.CompressedImage frames", topic=topic)]
+    return np.array(times, dtype=np.int64)
+
+
+def _indexed_times(path: Path, schema_name: str, topic: str | None,
+                   message_encoding: str = "protobuf") -> list[int] | None:
+    """log_times of the messages (of `topic` alone when given) in file order, from the file's chunk and
+    message indexes; None where the file has no complete index. The channels' schemas are checked as
+    _iter_messages checks them."""
+    with open(path, "rb") as f:
+        try:
+            summary = SeekingReader(f, validate_crcs=True).get_summary()
+        except Exception:  # no footer or summary: truncated or corrupt, read from the start instead
+            return None
+        chunks = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset) if summary else []
+        if not chunks or any(c.message_index_length == 0 for c in chunks):
+            return None
+        wanted = {cid for c in chunks for cid in c.message_index_offsets
+                  if topic is None or summary.channels[cid].topic == topic}
+        for cid in sorted(wanted):
+            channel = summary.channels[cid]
+            schema = summary.schemas.get(channel.schema_id)
+            if schema is None or schema.name != schema_name or channel.message_encoding != message_encoding:
+                raise McapDamagedError(
+                    f"{path}: channel {channel.topic} has schema {None if schema is None else schema.name!r} "
+                    f"({channel.message_encoding}), expected {message_encoding} {schema_name!r}")
+        entries = []
+        for chunk in chunks:
+            f.seek(chunk.chunk_start_offset + chunk.chunk_length)
+            block = io.BytesIO(f.read(chunk.message_index_length))
+            records = StreamReader(block, skip_magic=True).records
+            while block.tell() < chunk.message_index_length:  # the reader would go on to look for a footer
+                record = next(records)
+                if isinstance(record, MessageIndex) and record.channel_id in wanted:
+                    entries += [(chunk.chunk_start_offset, offset, t) for t, offset in record.records]
+    return [t for *_, t in sorted(entries)]
 
 
 def read_channel(path: str | os.PathLike, topic: str, schema_name: str, message_encoding: str,

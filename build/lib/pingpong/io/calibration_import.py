@@ -1,0 +1,291 @@
+"""Import (and export) an existing camera calibration instead of calibrating from images.
+
+Two formats:
+- OpenCV FileStorage YAML or JSON (read and written with cv2.FileStorage). Layout written here:
+  a top-level sequence `cameras`, each a map with `name`, `image_width`, `image_height`,
+  `camera_matrix` (3x3), `distortion_coefficients` (1x5), `R` (3x3) and `tvec` (3x1). Also read:
+  top-level maps, one per camera (the key is the name), and the common alternative keys
+  K/cameraMatrix, D/dist/dist_coeffs/distCoeffs, rvec (Rodrigues)/rotation_matrix, t/T/translation,
+  width/height or image_size/size ([width, height]).
+- The Anipose/Pose2Sim TOML: one table per camera with name, size [width, height], matrix,
+  distortions (k1 k2 p1 p2 [k3]), rotation (Rodrigues vector), translation; a [metadata] table.
+
+Frames: the extrinsics must be world -> camera in OpenCV's convention (x_cam = R @ x_world + t)
+with the world being the table frame (origin at the centre of the table surface, x across the
+width, y along the length, z up). Anipose places its world at the first camera or the board it
+was calibrated with; move such a calibration into the table frame with `change_world_frame`.
+Neither format defines the translation units (Pose2Sim writes metres, Anipose commonly
+millimetres), so readers and writers take `units` explicitly; the writers also record them
+(top-level `units`, TOML [metadata] units) and the readers refuse a file that states others. The readers
+also refuse a rig that the units make implausible (`check_camera_spacing`): metres read as millimetres
+put the cameras millimetres apart.
+"""
+
+import tomllib
+from pathlib import Path
+
+import cv2
+import numpy as np
+import tomli_w
+
+from pingpong.common.atomic import write_text_atomic
+from pingpong.common.camera import Camera
+
+UNITS_M = {"m": 1.0, "cm": 1e-2, "mm": 1e-3}
+UNIT_NAMES = {"m": "metres", "cm": "centimetres", "mm": "millimetres"}
+# Cameras around a table stand 0.3 m (a close pair) to 30 m (the ends of a hall) apart, within 20 m of the
+# world origin (the table, a camera or the board the rig was calibrated on). A factor of 10 or 1000 in
+# the units lands outside: a calibration in metres read as mm puts the cameras 2 mm apart.
+CAMERA_SPACING_M = (0.3, 30.0)
+MAX_FROM_ORIGIN_M = 20.0
+
+OPENCV_KEYS = {
+    "K": ("camera_matrix", "cameraMatrix", "K"),
+    "dist": ("distortion_coefficients", "dist_coeffs", "distCoeffs", "D", "dist"),
+    "rotation": ("R", "rotation_matrix", "rvec"),
+    "t": ("tvec", "t", "T", "translation"),
+}
+ANIPOSE_KEYS = ("size", "matrix", "distortions", "rotation", "translation")
+
+
+def _unit_scale(units: str) -> float:
+    if units not in UNITS_M:
+        raise ValueError(f"units must be one of {sorted(UNITS_M)}, got {units!r}")
+    return UNITS_M[units]
+
+
+def _check_stated_units(stated: str | None, units: str, where: str) -> None:
+    if stated is not None and stated != units:
+        raise ValueError(f"{where}: the file states units {stated!r} but {units!r} were asked for")
+
+
+def _distortion5(dist: np.ndarray, where: str) -> np.ndarray:
+    """The 5 coefficients (k1 k2 p1 p2 k3) that Camera models; 4 are padded with k3 = 0."""
+    d = np.asarray(dist, float).ravel()
+    if len(d) < 4 or np.any(d[5:] != 0):
+        raise ValueError(f"{where}: distortion needs 4 or 5 coefficients (k1 k2 p1 p2 [k3]), "
+                         f"got {d.tolist()}; the rational, thin-prism and tilted models are not supported")
+    return np.pad(d[:5], (0, 5 - min(len(d), 5)))
+
+
+def _rotation(value: np.ndarray, where: str) -> np.ndarray:
+    """3x3 rotation from a matrix or a Rodrigues vector, checked to be a rotation."""
+    v = np.asarray(value, float)
+    if v.size == 3:
+        R = cv2.Rodrigues(v.reshape(3, 1))[0]
+    elif v.size == 9:
+        R = v.reshape(3, 3)
+    else:
+        raise ValueError(f"{where}: rotation must be a 3x3 matrix or a Rodrigues 3-vector, "
+                         f"got {v.size} values")
+    if not (np.allclose(R.T @ R, np.eye(3), atol=1e-6) and np.linalg.det(R) > 0):
+        raise ValueError(f"{where}: rotation is not orthonormal with determinant +1")
+    return R
+
+
+def _camera(name: str, K, dist, rotation, t, width, height, scale: float, where: str) -> Camera:
+    K = np.asarray(K, float).reshape(-1)
+    t = np.asarray(t, float).reshape(-1)
+    if K.size != 9 or t.size != 3:
+        raise ValueError(f"{where}: need a 3x3 camera matrix and a 3-vector translation, got {K.size} and "
+                         f"{t.size} values")
+    return Camera(name=name, K=K.reshape(3, 3), dist=_distortion5(dist, where), R=_rotation(rotation, where),
+                  t=t * scale, width=int(round(float(width))), height=int(round(float(height))))
+
+
+def check_camera_spacing(cameras: list[Camera], units: str, where: str) -> None:
+    """Refuse camera centres closer or farther apart, or farther from the origin, than a lab's rig can be,
+    suggesting the units that would make them plausible."""
+    centres = np.array([c.center for c in cameras])
+    names = [c.name for c in cameras]
+    problem = _spacing_problem(names, centres)
+    if problem is None:
+        return
+    rescaled = {u: centres * UNITS_M[u] / UNITS_M[units] for u in UNITS_M if u != units}
+    fits = [u for u, c in rescaled.items() if _spacing_problem(names, c) is None]
+    advice = (f"is units {units!r} right for a file in {UNIT_NAMES[fits[0]]}?" if fits
+              else "check the file's extrinsics and its units")
+    raise ValueError(f"{where}: {problem} with units {units!r}: {advice}")
+
+
+def _spacing_problem(names: list[str], centres: np.ndarray) -> str | None:
+    lo, hi = CAMERA_SPACING_M
+    far = np.linalg.norm(centres, axis=1)
+    if far.max() > MAX_FROM_ORIGIN_M:
+        c = int(far.argmax())
+        return (f"camera {names[c]} is {_length(far[c])} from the world origin (expected within "
+                f"{MAX_FROM_ORIGIN_M:g} m)")
+    for a in range(len(centres)):
+        for b in range(a + 1, len(centres)):
+            d = float(np.linalg.norm(centres[a] - centres[b]))
+            if not lo <= d <= hi:
+                return f"cameras {names[a]} and {names[b]} {_length(d)} apart (expected {lo:g} to {hi:g} m)"
+    return None
+
+
+def _length(metres: float) -> str:
+    if metres < 0.1:
+        return f"{1e3 * metres:.3g} mm"
+    return f"{metres:.3g} m" if metres < 100 else f"{metres:.0f} m"
+
+
+def change_world_frame(cameras: list[Camera], T_old_from_new: np.ndarray) -> list[Camera]:
+    """Cameras with extrinsics re-expressed in a new world frame (e.g. old = Anipose's, new = table)."""
+    R_on, t_on = T_old_from_new[:3, :3], T_old_from_new[:3, 3]
+    return [Camera(c.name, c.K, c.dist, c.R @ R_on, c.R @ t_on + c.t, c.width, c.height) for c in cameras]
+
+
+# --- Anipose / Pose2Sim TOML -----------------------------------------------------------------------
+
+def read_anipose_toml(path: str | Path, *, units: str) -> list[Camera]:
+    """Cameras (in file order) from an Anipose/Pose2Sim calibration TOML whose translations are in `units`."""
+    path = Path(path)
+    scale = _unit_scale(units)
+    try:
+        with path.open("rb") as f:
+            doc = tomllib.load(f)
+    except tomllib.TOMLDecodeError as err:
+        raise ValueError(f"{path}: not valid TOML ({err})") from None
+    _check_stated_units(doc.get("metadata", {}).get("units"), units, f"{path}: [metadata]")
+    cameras = []
+    for section, cam in doc.items():
+        if section == "metadata":
+            continue
+        where = f"{path}: [{section}]"
+        if not isinstance(cam, dict):
+            raise ValueError(f"{where}: expected a camera table")
+        missing = [k for k in ANIPOSE_KEYS if k not in cam]
+        if missing:
+            raise ValueError(f"{where}: missing key(s) {missing}")
+        if cam.get("fisheye", False):
+            raise ValueError(f"{where}: fisheye cameras are not supported")
+        if len(cam["size"]) != 2:
+            raise ValueError(f"{where}: size must be [width, height], got {cam['size']}")
+        cameras.append(_camera(str(cam.get("name", section)), cam["matrix"], cam["distortions"],
+                               cam["rotation"], cam["translation"], *cam["size"], scale, where))
+    if not cameras:
+        raise ValueError(f"{path}: no camera tables")
+    check_camera_spacing(cameras, units, str(path))
+    return cameras
+
+
+def export_anipose_toml(cameras: list[Camera], path: str | Path, *, units: str = "m") -> None:
+    """Write cameras as an Anipose/Pose2Sim calibration TOML ([cam_0], ...), translations in `units`."""
+    scale = _unit_scale(units)
+    doc = {
+        f"cam_{i}": {
+            "name": cam.name,
+            "size": [cam.width, cam.height],
+            "matrix": cam.K.tolist(),
+            "distortions": cam.dist.tolist(),
+            "rotation": cv2.Rodrigues(cam.R)[0].ravel().tolist(),
+            "translation": (cam.t / scale).tolist(),
+        }
+        for i, cam in enumerate(cameras)
+    }
+    doc["metadata"] = {"adjusted": False, "error": 0.0, "units": units}
+    write_text_atomic(path, tomli_w.dumps(doc))
+
+
+# --- OpenCV FileStorage YAML / JSON ----------------------------------------------------------------
+
+def _is_matrix(node: "cv2.FileNode") -> bool:
+    """Whether a node is an !!opencv-matrix (JSON: a map with type_id); FileNode.mat() throws otherwise."""
+    return node.isMap() and "data" in node.keys()
+
+
+def _node_value(node: "cv2.FileNode"):
+    """A FileStorage node as a number, string, list or numpy array (for !!opencv-matrix)."""
+    if node.isMap():
+        if not _is_matrix(node):
+            raise ValueError("a map where a matrix or a list was expected")
+        try:
+            return node.mat()
+        except cv2.error as err:
+            raise ValueError(f"unreadable matrix ({err})") from None
+    if node.isSeq():
+        return [_node_value(node.at(i)) for i in range(node.size())]
+    return node.string() if node.isString() else node.real()
+
+
+def _opencv_camera(node: "cv2.FileNode", default_name: str, scale: float, where: str) -> Camera:
+    keys = set(node.keys())
+
+    def get(field: str, names: tuple[str, ...]):
+        found = [n for n in names if n in keys]
+        if not found:
+            raise ValueError(f"{where}: missing {field!r} (one of the keys {list(names)})")
+        try:
+            return _node_value(node.getNode(found[0]))
+        except ValueError as err:
+            raise ValueError(f"{where}: key {found[0]!r}: {err}") from None
+
+    if {"image_width", "image_height"} <= keys or {"width", "height"} <= keys:
+        w_key, h_key = ("image_width", "image_height") if "image_width" in keys else ("width", "height")
+        width, height = get("width", (w_key,)), get("height", (h_key,))
+    else:
+        size = np.asarray(get("image size", ("image_size", "size")), float).ravel()
+        if size.size != 2:
+            raise ValueError(f"{where}: image size must be [width, height], got {size.tolist()}")
+        width, height = size
+    name = node.getNode("name").string() if "name" in keys else default_name
+    return _camera(name, *(get(field, names) for field, names in OPENCV_KEYS.items()), width, height,
+                   scale, where)
+
+
+def read_opencv_calibration(path: str | Path, *, units: str) -> list[Camera]:
+    """Cameras from an OpenCV FileStorage YAML/JSON calibration whose translations are in `units`."""
+    path = Path(path)
+    scale = _unit_scale(units)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: calibration file not found")
+    try:
+        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+    except (cv2.error, SystemError) as err:
+        raise ValueError(f"{path}: not a readable OpenCV YAML/JSON file ({err.__cause__ or err})") from None
+    try:
+        root = fs.root()
+        if not root.isMap():
+            raise ValueError(f"{path}: expected a map at the top level")
+        if "units" in root.keys():
+            _check_stated_units(root.getNode("units").string(), units, f"{path}: units")
+        if "cameras" in root.keys():
+            seq = root.getNode("cameras")
+            if not seq.isSeq():
+                raise ValueError(f"{path}: 'cameras' must be a sequence of camera maps")
+            nodes = [(f"cam{i}", seq.at(i), f"{path}: cameras[{i}]") for i in range(seq.size())]
+        elif set(OPENCV_KEYS["K"]) & set(root.keys()):  # a single camera at the top level
+            nodes = [(path.stem, root, str(path))]
+        else:
+            nodes = [(key, root.getNode(key), f"{path}: {key}") for key in root.keys()
+                     if root.getNode(key).isMap() and not _is_matrix(root.getNode(key))]
+        if not nodes:
+            raise ValueError(f"{path}: no cameras (expected a 'cameras' sequence or one map per camera)")
+        cameras = [_opencv_camera(node, name, scale, where) for name, node, where in nodes]
+    finally:
+        fs.release()
+    check_camera_spacing(cameras, units, str(path))
+    return cameras
+
+
+def export_opencv_yaml(cameras: list[Camera], path: str | Path, *, units: str = "m") -> None:
+    """Write cameras in this module's OpenCV FileStorage layout; JSON if path ends in .json, else YAML."""
+    scale = _unit_scale(units)
+    is_json = Path(path).suffix.lower() == ".json"
+    fmt = cv2.FILE_STORAGE_FORMAT_JSON if is_json else cv2.FILE_STORAGE_FORMAT_YAML
+    # written in memory, then renamed into place: FileStorage would pick the format from the temp name
+    fs = cv2.FileStorage("", cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_MEMORY | fmt)
+    fs.write("units", units)
+    fs.startWriteStruct("cameras", cv2.FileNode_SEQ)
+    for cam in cameras:
+        fs.startWriteStruct("", cv2.FileNode_MAP)
+        fs.write("name", cam.name)
+        fs.write("image_width", cam.width)
+        fs.write("image_height", cam.height)
+        fs.write("camera_matrix", cam.K)
+        fs.write("distortion_coefficients", cam.dist.reshape(1, -1))
+        fs.write("R", cam.R)
+        fs.write("tvec", (cam.t / scale).reshape(3, 1))
+        fs.endWriteStruct()
+    fs.endWriteStruct()
+    write_text_atomic(path, fs.releaseAndGetString())

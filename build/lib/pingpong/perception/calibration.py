@@ -1,0 +1,501 @@
+"""Camera calibration: intrinsics from views of a hand-held board, extrinsics from the ChArUco mat on the
+table; or an imported calibration placed in the table frame. Either is checked by reprojection.
+
+OpenCV does the work (findChessboardCorners + cornerSubPix or CharucoDetector, calibrateCamera,
+solvePnP); this module only chains it and reports errors per camera. The calibration rule also fits
+the OptiTrack-to-table transform from the table-corner markers (optitrack_to_table) where the lab has
+OptiTrack.
+"""
+
+import logging
+import os
+from collections import Counter
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pandas as pd
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
+
+from pingpong.common.artifacts import read_json
+from pingpong.common.camera import Camera
+from pingpong.common.patterns import (
+    CHECKERBOARD,
+    TABLE_CHARUCO,
+    TABLE_MARKERS,
+    Checkerboard,
+    TableCharuco,
+    table_pattern_object_points,
+)
+from pingpong.common.rigid import fit_rigid_transform, invert_transform, make_transform
+from pingpong.io.calibration_import import change_world_frame, read_anipose_toml, read_opencv_calibration
+from pingpong.perception.schemas import CAMERAS
+
+log = logging.getLogger(__name__)
+SUBPIX = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-4)
+OUTLIER_VIEW_FACTOR = 3.0  # a view whose RMS exceeds this many times the median view's is dropped
+MIN_VIEWS = 4
+MIN_CHARUCO_CORNERS = 6  # per intrinsics view: fewer constrain the view's pose poorly
+BOARD_CONFIG = "config perception.calibration_board"
+WORLD_CONFIG = "config perception.calibration_import_world"
+RMS_CONFIG = "config perception.calibration_max_rms_share"
+
+
+class CalibrationError(RuntimeError):
+    pass
+
+
+# --- the intrinsics board and lens model --------------------------------------------------------------
+# A lab's own board is described here rather than in common.patterns (where the twin's CHECKERBOARD is):
+# every twin rule hashes that module, so an edit there would re-render the twin for nothing.
+
+@dataclass(frozen=True)
+class Charuco:
+    """A hand-held ChArUco intrinsics board: squares_x by squares_y squares, ArUco markers in the white ones.
+
+    Unlike a checkerboard it is found when partly outside the image or occluded, so views can reach the
+    image corners. `legacy` is the layout of boards generated before OpenCV 4.6 (it differs when
+    squares_y is even).
+    """
+
+    squares_x: int
+    squares_y: int
+    square: float  # m
+    marker: float  # m
+    dictionary: str = "DICT_4X4_50"  # a cv2.aruco predefined dictionary
+    legacy: bool = False
+
+    def board(self) -> cv2.aruco.CharucoBoard:
+        dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.dictionary))
+        board = cv2.aruco.CharucoBoard((self.squares_x, self.squares_y), self.square, self.marker, dictionary)
+        board.setLegacyPattern(self.legacy)
+        return board
+
+
+def describe_board(board: Checkerboard | Charuco) -> str:
+    """The board as an error message names it, e.g. '9x6-inner-corner checkerboard (square 40 mm)'."""
+    if isinstance(board, Checkerboard):
+        return (f"{board.inner_cols}x{board.inner_rows}-inner-corner checkerboard "
+                f"(square {1e3 * board.square:g} mm)")
+    return (f"{board.squares_x}x{board.squares_y}-square ChArUco board (square {1e3 * board.square:g} mm, "
+            f"marker {1e3 * board.marker:g} mm, {board.dictionary}{', legacy' if board.legacy else ''})")
+
+
+BOARD_KEYS = {  # type: (required, optional) keys
+    "checkerboard": ({"type", "inner_corners", "square_m"}, set()),
+    "charuco": ({"type", "squares", "square_m", "marker_m"}, {"dictionary", "legacy"}),
+}
+
+
+def intrinsics_board(spec: dict) -> Checkerboard | Charuco:
+    """The intrinsics board of a config description, lengths in m:
+    {type: checkerboard, inner_corners: [cols, rows], square_m} (inner corners as
+    cv2.findChessboardCorners counts them: one fewer than the squares) or
+    {type: charuco, squares: [x, y], square_m, marker_m, dictionary: DICT_4X4_50, legacy: false}.
+    """
+    kind = spec.get("type")
+    if kind not in BOARD_KEYS:
+        raise ValueError(f"{BOARD_CONFIG}: type must be 'checkerboard' or 'charuco', got {kind!r}")
+    required, optional = BOARD_KEYS[kind]
+    if set(spec) - required - optional or required - set(spec):
+        raise ValueError(f"{BOARD_CONFIG}: a {kind} needs {sorted(required)} (optional {sorted(optional)}), "
+                         f"got {sorted(spec)}")
+    square = spec["square_m"]
+    if not 0 < square < 1:  # 25 here is a side in mm
+        raise ValueError(f"{BOARD_CONFIG}: square_m is the square's side in m, got {square}")
+    if kind == "checkerboard":
+        return Checkerboard(*_grid(spec["inner_corners"], "inner_corners"), float(square))
+    dictionary, marker = str(spec.get("dictionary", "DICT_4X4_50")), spec["marker_m"]
+    if not (dictionary.startswith("DICT_") and hasattr(cv2.aruco, dictionary)):
+        raise ValueError(f"{BOARD_CONFIG}: dictionary must name a cv2.aruco dictionary (e.g. DICT_4X4_50), "
+                         f"got {dictionary!r}")
+    if not 0 < marker < square:
+        raise ValueError(f"{BOARD_CONFIG}: marker_m must be positive and below square_m ({square}), "
+                         f"got {marker}")
+    return Charuco(*_grid(spec["squares"], "squares"), float(square), float(marker), dictionary,
+                   bool(spec.get("legacy", False)))
+
+
+def _grid(grid, key: str) -> tuple[int, int]:
+    if not (isinstance(grid, list | tuple) and len(grid) == 2 and all(isinstance(n, int) and n >= 2
+                                                                     for n in grid)):
+        raise ValueError(f"{BOARD_CONFIG}: {key} must be [cols, rows], two integers >= 2, got {grid!r}")
+    return int(grid[0]), int(grid[1])
+
+
+@dataclass(frozen=True)
+class IntrinsicsSetup:
+    """The board each camera is shown for its intrinsics, and the lens model fitted to the views."""
+
+    board: Checkerboard | Charuco = CHECKERBOARD
+    # k3 (the r^6 term) is pinned only by corners near the image's corners, which a hand-held board
+    # rarely reaches: on a lab's cameras a free k3 came out at 12 on one camera and moved the image
+    # corners by 350-430 px. Labs fix it at 0 (cv2.CALIB_FIX_K3, intrinsics_setup). The default fits it,
+    # as the twin always has: the twin's calibration stays what it was (its k3 comes out within 0.09 of 0).
+    fit_k3: bool = True
+
+    @property
+    def flags(self) -> int:
+        """The cv2.calibrateCamera flags of this lens model."""
+        return 0 if self.fit_k3 else cv2.CALIB_FIX_K3
+
+
+def intrinsics_setup(board: dict, fit_k3: bool | None, source: str) -> IntrinsicsSetup:
+    """The setup of the calibration stage's params: board as config perception.calibration_board
+    describes it; fit_k3 None fits k3 on the twin only (as before) and fixes it for a lab."""
+    return IntrinsicsSetup(intrinsics_board(board), source == "twin" if fit_k3 is None else bool(fit_k3))
+
+
+def read_gray(path) -> np.ndarray:
+    image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    if image is None:
+        raise CalibrationError(f"{path}: cannot be decoded as an image")
+    return image
+
+
+def find_checkerboard(gray: np.ndarray, board: Checkerboard = CHECKERBOARD) -> np.ndarray | None:
+    """Sub-pixel inner corners (N, 2) of the checkerboard, or None when it is not fully visible."""
+    flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+    found, corners = cv2.findChessboardCorners(gray, board.pattern_size, flags=flags)
+    if not found:
+        return None
+    return cv2.cornerSubPix(gray, corners, (5, 5), (-1, -1), SUBPIX).reshape(-1, 2)
+
+
+def find_board(gray: np.ndarray, board: Checkerboard | Charuco) -> tuple[np.ndarray, np.ndarray] | None:
+    """Board-frame points (N, 3) m and their image positions (N, 2) px, float32, or None when not found."""
+    if isinstance(board, Checkerboard):
+        corners = find_checkerboard(gray, board)
+        return None if corners is None else (board.object_points().astype(np.float32),
+                                              corners.astype(np.float32))
+    cv_board = board.board()
+    corners, ids, _, _ = cv2.aruco.CharucoDetector(cv_board).detectBoard(gray)
+    if ids is None or len(ids) < MIN_CHARUCO_CORNERS or cv_board.checkCharucoCornersCollinear(ids):
+        return None
+    return (cv_board.getChessboardCorners()[ids.ravel()].astype(np.float32),
+            corners.reshape(-1, 2).astype(np.float32))
+
+
+def calibrate_intrinsics(paths: list, setup: IntrinsicsSetup = IntrinsicsSetup()) -> dict:
+    """K, dist (k1 k2 p1 p2 k3), RMS reprojection error (px) and views used, from views of the board."""
+    object_points, image_points, size, used = [], [], None, []
+    for path in paths:
+        gray = read_gray(path)
+        if size is not None and gray.shape[::-1] != size:
+            raise CalibrationError(f"{path}: {gray.shape[1]}x{gray.shape[0]} px, the other views {size[0]}x"
+                                   f"{size[1]} px: one camera's views must share its resolution")
+        size = gray.shape[::-1]
+        found = find_board(gray, setup.board)
+        if found is None:
+            log.warning("%s: no %s found, view skipped", path, describe_board(setup.board))
+            continue
+        object_points.append(found[0])
+        image_points.append(found[1])
+        used.append(str(path))
+    if len(used) < MIN_VIEWS:
+        raise CalibrationError(_unusable_views(paths, used, setup.board))
+    rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(object_points, image_points, size, None, None,
+                                                     flags=setup.flags)
+    # A board seen nearly edge-on gives poorly located corners that pull the whole fit:
+    # drop views far worse than the typical one and fit again (once).
+    view_rms = np.array([_view_rms(o, i, r, t, K, dist)
+                         for o, i, r, t in zip(object_points, image_points, rvecs, tvecs, strict=True)])
+    keep = view_rms <= OUTLIER_VIEW_FACTOR * np.median(view_rms)
+    if not keep.all() and keep.sum() >= MIN_VIEWS:
+        for path in np.array(used)[~keep]:
+            log.warning("%s: view reprojects %.2f px RMS (median %.2f), dropped", path,
+                        view_rms[used.index(path)], np.median(view_rms))
+        object_points = [o for o, k in zip(object_points, keep, strict=True) if k]
+        image_points = [i for i, k in zip(image_points, keep, strict=True) if k]
+        used = [u for u, k in zip(used, keep, strict=True) if k]
+        rms, K, dist, _, _ = cv2.calibrateCamera(object_points, image_points, size, None, None,
+                                                 flags=setup.flags)
+    return {"K": K, "dist": dist.ravel()[:5], "rms_px": float(rms), "views": used, "size": size}
+
+
+def _unusable_views(paths: list, used: list, board: Checkerboard | Charuco) -> str:
+    folder = Path(os.path.commonpath([str(p) for p in paths])) if paths else Path("?")
+    folder = folder.parent if folder.is_file() else folder
+    missed = [os.path.relpath(p, folder) for p in paths if str(p) not in used]
+    return (f"{folder}: only {len(used)} of {len(paths)} views show the {describe_board(board)} (need "
+            f"{MIN_VIEWS}); check the board in {BOARD_CONFIG}. Not found in: {', '.join(missed)}")
+
+
+def _view_rms(obj, img, rvec, tvec, K, dist) -> float:
+    projected, _ = cv2.projectPoints(obj, rvec, tvec, K, dist)
+    return float(np.sqrt(np.mean(np.sum((projected.reshape(-1, 2) - img.reshape(-1, 2)) ** 2, axis=1))))
+
+
+def table_corners(path, pattern: TableCharuco = TABLE_CHARUCO) -> tuple[np.ndarray, np.ndarray]:
+    """Table-frame points (N, 3) m of the mat's ChArUco corners seen in a table shot, and their sub-pixel
+    image positions (N, 1, 2) px."""
+    gray = read_gray(path)
+    detector = cv2.aruco.CharucoDetector(pattern.board())
+    corners, ids, _, _ = detector.detectBoard(gray)
+    if ids is None or len(ids) < 6:
+        raise CalibrationError(f"{path}: the table's ChArUco mat is not visible enough "
+                               f"({0 if ids is None else len(ids)} corners, need 6)")
+    # Far squares are ~10 px deep at 480x360: a larger window would reach into the markers.
+    half = max(2, round(2 * gray.shape[1] / 480))
+    corners = cv2.cornerSubPix(gray, corners.astype(np.float32), (half, half), (-1, -1), SUBPIX)
+    return table_pattern_object_points(ids.ravel(), pattern), corners
+
+
+def extrinsics_from_table(path, K: np.ndarray, dist: np.ndarray,
+                          pattern: TableCharuco = TABLE_CHARUCO) -> dict:
+    """World(table)->camera R, t from the ChArUco mat on the table, with its reprojection RMS (px)."""
+    obj, corners = table_corners(path, pattern)
+    ok, rvec, tvec = cv2.solvePnP(obj, corners, K, dist, flags=cv2.SOLVEPNP_ITERATIVE)
+    if not ok:
+        raise CalibrationError(f"{path}: solvePnP failed on {len(obj)} ChArUco corners")
+    projected, _ = cv2.projectPoints(obj, rvec, tvec, K, dist)
+    rms = float(np.sqrt(np.mean(np.sum((projected.reshape(-1, 2) - corners.reshape(-1, 2)) ** 2, axis=1))))
+    return {"R": cv2.Rodrigues(rvec)[0], "t": tvec.ravel(), "rms_px": rms, "n_corners": int(len(obj))}
+
+
+def calibrate_camera(name: str, intrinsics_paths: list, table_path,
+                     setup: IntrinsicsSetup = IntrinsicsSetup()) -> tuple[Camera, dict]:
+    """One camera from its raw calibration captures, and its error report."""
+    intr = calibrate_intrinsics(sorted(intrinsics_paths, key=str), setup)
+    extr = extrinsics_from_table(table_path, intr["K"], intr["dist"])
+    camera = Camera(name, intr["K"], intr["dist"], extr["R"], extr["t"], *intr["size"])
+    report = {"name": name, "intrinsics_rms_px": intr["rms_px"], "views_used": len(intr["views"]),
+              "extrinsics_rms_px": extr["rms_px"], "table_corners": extr["n_corners"],
+              "center": camera.center.tolist()}
+    log.info("%s: intrinsics RMS %.3f px over %d views, extrinsics RMS %.3f px", name,
+             intr["rms_px"], len(intr["views"]), extr["rms_px"])
+    return camera, report
+
+
+def camera_folder_paths(folder) -> tuple[list[Path], Path]:
+    """A camera's intrinsics views `intrinsics_*.png` and its table shot `table.png`."""
+    folder = Path(folder)
+    views = sorted(folder.glob("intrinsics_*.png"))
+    if not views:
+        raise CalibrationError(f"{folder}: no intrinsics views intrinsics_*.png to calibrate from")
+    return views, folder / "table.png"
+
+
+def fit_calibration(names: list[str], folders: list, setup: IntrinsicsSetup,
+                    max_rms_share: float) -> tuple[list[Camera], list[dict]]:
+    """Every camera from its folder's captures, and the reports, checked by reprojection."""
+    pairs = [calibrate_camera(name, *camera_folder_paths(folder), setup)
+             for name, folder in zip(names, folders, strict=True)]
+    for camera, report in pairs:
+        worst = max(report["intrinsics_rms_px"], report["extrinsics_rms_px"])
+        check_rms(camera, worst, f"its board views ({report['intrinsics_rms_px']:.2f} px) and the table "
+                  f"mat ({report['extrinsics_rms_px']:.2f} px)", max_rms_share)
+    return [c for c, _ in pairs], [r for _, r in pairs]
+
+
+def rms_limit_px(camera: Camera, max_rms_share: float) -> float:
+    """The largest reprojection RMS a calibration may have, px: a share of the image's diagonal, so that one
+    setting holds at any resolution (0.002: 1.2 px at 480x360, 4.4 px at 1920x1080)."""
+    return max_rms_share * float(np.hypot(camera.width, camera.height))
+
+
+def check_rms(camera: Camera, rms: float, what: str, max_rms_share: float) -> dict:
+    """A reprojection RMS (px) of `what` checked against the camera's limit; its record."""
+    limit = rms_limit_px(camera, max_rms_share)
+    if not rms <= limit:
+        raise CalibrationError(f"{camera.name}: the calibration reprojects {what} at {rms:.2f} px RMS, over "
+                               f"the {limit:.2f} px limit ({max_rms_share:g} of the {camera.width}x"
+                               f"{camera.height} image's diagonal, {RMS_CONFIG})")
+    return {"camera": camera.name, "points": what, "rms_px": rms, "limit_px": limit}
+
+
+def reprojection_rms(camera: Camera, points: np.ndarray, pixels: np.ndarray) -> float:
+    """RMS distance (px) between the projections of table points (N, 3) m and their pixels (N, 2)."""
+    error = camera.project(points) - np.asarray(pixels, float).reshape(-1, 2)
+    return float(np.sqrt(np.mean(np.sum(error ** 2, axis=1))))
+
+
+# --- an imported calibration ------------------------------------------------------------------------
+
+def import_calibration(path, units: str | None, world, names: list[str], table_shots: dict,
+                       max_rms_share: float) -> tuple[list[Camera], list[dict]]:
+    """The configured cameras of an imported calibration file, placed in the table frame as `world` says,
+    and the records of the reprojection checks they passed (none: unchecked, logged).
+
+    units: the file's length unit (m, cm, mm); world: 'table', {T_table_from_world: 4x4 (m)} or
+    {table_points: [{xyz_m: [x, y, z], pixels: {camera: [u, v]}}, ...]} (see table_from_world);
+    table_shots: camera name -> its table.png, where the lab has them.
+    """
+    if units is None:
+        raise CalibrationError(f"{path}: config perception.calibration_import_units is required with an "
+                               f"import: the file's length unit (m, cm or mm), which neither format states")
+    reader = read_anipose_toml if str(path).endswith(".toml") else read_opencv_calibration
+    cameras = _configured(reader(path, units=units), names, path)
+    T_table_from_world, observations = table_from_world(world, cameras)
+    cameras = change_world_frame(cameras, invert_transform(T_table_from_world))
+    checks = []
+    for cam in cameras:
+        points, pixels = _observed_by(cam.name, observations)
+        if len(points):  # a residual check only: these points placed the rig
+            checks.append(check_rms(cam, reprojection_rms(cam, points, pixels),
+                                    "the listed table points (which placed the rig)", max_rms_share))
+        if cam.name in table_shots:
+            points, pixels = table_corners(table_shots[cam.name])
+            checks.append(check_rms(cam, reprojection_rms(cam, points, pixels),
+                                    f"the table mat's {len(points)} corners in {table_shots[cam.name]}",
+                                    max_rms_share))
+    if not checks:
+        log.warning("%s: the imported calibration is UNCHECKED: no table shots and no table points to "
+                    "reproject; its table frame is trusted as %s says (%r)", path, WORLD_CONFIG, world)
+    for check in checks:
+        log.info("%s: %s reproject at %.2f px RMS (limit %.2f px)", check["camera"], check["points"],
+                 check["rms_px"], check["limit_px"])
+    return cameras, checks
+
+
+def _configured(cameras: list[Camera], names: list[str], path) -> list[Camera]:
+    by_name = {c.name: c for c in cameras}
+    missing = [n for n in names if n not in by_name]
+    if missing:
+        raise CalibrationError(f"{path}: no camera(s) {missing}; the file names {sorted(by_name)}: name the "
+                               f"config's cameras as the file does")
+    return [by_name[n] for n in names]
+
+
+def _observed_by(name: str, observations: list) -> tuple[np.ndarray, np.ndarray]:
+    mine = [(xyz, uv) for cam, xyz, uv in observations if cam == name]
+    return np.array([m[0] for m in mine], float).reshape(-1, 3), np.array([m[1] for m in mine], float)
+
+
+def table_from_world(world, cameras: list[Camera]) -> tuple[np.ndarray, list]:
+    """T_table_from_world (4x4, m) of the import's world frame, and the table points' observations
+    (camera, xyz (3,) m, pixel (2,) px) where the config lists them."""
+    if world == "table":
+        return np.eye(4), []
+    if isinstance(world, dict) and set(world) == {"T_table_from_world"}:
+        return _rigid_4x4(world["T_table_from_world"]), []
+    if isinstance(world, dict) and set(world) == {"table_points"}:
+        observations = _table_points(world["table_points"], [c.name for c in cameras])
+        return fit_table_from_world(cameras, observations), observations
+    raise CalibrationError(f"{WORLD_CONFIG} must say how the import's world frame relates to the table: "
+                           f"'table', {{T_table_from_world: 4x4, m}} or {{table_points: [{{xyz_m: [x, y, z], "
+                           f"pixels: {{camera: [u, v]}}}}, ...]}}; got {world!r}")
+
+
+def _rigid_4x4(value) -> np.ndarray:
+    T = np.asarray(value, float)
+    if T.shape != (4, 4) or not np.allclose(T[3], [0, 0, 0, 1]):
+        raise CalibrationError(f"{WORLD_CONFIG}: T_table_from_world must be a 4x4 rigid transform "
+                               f"(last row 0 0 0 1), got {np.shape(value)}: {value!r}")
+    R = T[:3, :3]
+    if not (np.allclose(R.T @ R, np.eye(3), atol=1e-6) and np.linalg.det(R) > 0):
+        raise CalibrationError(f"{WORLD_CONFIG}: T_table_from_world's rotation is not orthonormal with "
+                               f"determinant +1")
+    return T
+
+
+def _table_points(points, names: list[str]) -> list:
+    observations = []
+    for i, point in enumerate(points if isinstance(points, list) else [points]):
+        where = f"{WORLD_CONFIG}: table_points[{i}]"
+        if not (isinstance(point, dict) and set(point) == {"xyz_m", "pixels"} and np.size(point["xyz_m"]) == 3
+                and isinstance(point["pixels"], dict) and point["pixels"]):
+            raise CalibrationError(f"{where}: expected {{xyz_m: [x, y, z] (table frame, m), pixels: "
+                                   f"{{camera: [u, v] (px)}}}}, got {point!r}")
+        for cam, uv in point["pixels"].items():
+            if cam not in names or np.size(uv) != 2:
+                raise CalibrationError(f"{where}: pixels of camera {cam!r} must be [u, v] px of one of the "
+                                       f"cameras {names}, got {uv!r}")
+            observations.append((cam, np.asarray(point["xyz_m"], float), np.asarray(uv, float)))
+    return observations
+
+
+def fit_table_from_world(cameras: list[Camera], observations: list) -> np.ndarray:
+    """T_table_from_world (4x4, m) placing the imported rig on the table from table points' pixels.
+
+    The whole rig moves as one rigid body: 6 unknowns fitted to every camera's pixels, so the import's
+    inter-camera geometry is kept, a point seen by one camera counts, and one camera seeing 4 points is
+    enough. (Per-camera solvePnP would replace each camera's extrinsics by a 4-point pose; triangulating
+    the points would need each in two cameras.) Starts from solvePnP in the camera seeing most points.
+    """
+    counts = Counter(cam for cam, _, _ in observations)
+    xyz = np.array([x for _, x, _ in observations])
+    first, n_first = counts.most_common(1)[0] if counts else (None, 0)
+    if (n_first < 3 or len(observations) < 4
+            or np.linalg.matrix_rank(xyz - xyz.mean(axis=0), tol=1e-3) < 2):
+        raise CalibrationError(f"{WORLD_CONFIG}: table_points need >= 3 points not on one line, one camera "
+                               f"seeing >= 3 of them and >= 4 pixel positions in all (3 in one camera leave "
+                               f"up to 4 poses); got {len(observations)} in cameras {dict(counts)}")
+    by_name = {c.name: c for c in cameras}
+    start = by_name[first]
+    ok, rvec, tvec = cv2.solvePnP(*_observed_by(first, observations), start.K, start.dist,
+                                  flags=cv2.SOLVEPNP_SQPNP)
+    if not ok:
+        raise CalibrationError(f"{WORLD_CONFIG}: solvePnP failed on camera {first}'s table points")
+    T_cam_from_table = make_transform(cv2.Rodrigues(rvec)[0], tvec.ravel())
+    T0 = invert_transform(make_transform(start.R, start.t)) @ T_cam_from_table  # world from table
+
+    index = [[c.name for c in cameras].index(cam) for cam, _, _ in observations]
+    pixels = np.array([uv for _, _, uv in observations])
+
+    def residuals(x: np.ndarray) -> np.ndarray:  # x: T_world_from_table as rotation vector, translation (m)
+        moved = change_world_frame(cameras, _transform(x))
+        return np.concatenate([moved[c].project(p)[0] - uv
+                               for c, p, uv in zip(index, xyz, pixels, strict=True)])
+
+    x0 = np.concatenate([Rotation.from_matrix(T0[:3, :3]).as_rotvec(), T0[:3, 3]])
+    return invert_transform(_transform(least_squares(residuals, x0, method="lm").x))
+
+
+def _transform(x: np.ndarray) -> np.ndarray:
+    return make_transform(Rotation.from_rotvec(x[:3]).as_matrix(), x[3:])
+
+
+# --- the stored calibration and OptiTrack ---------------------------------------------------------
+
+def load_cameras(path) -> tuple[list[Camera], dict]:
+    """The calibrated cameras and the rest of interim/calibration/cameras.json."""
+    payload = read_json(path, CAMERAS)
+    return [Camera.from_dict(c) for c in payload["cameras"]], payload
+
+
+def table_from_optitrack(calibration: dict, where) -> np.ndarray:
+    """T_table_from_optitrack (4x4) of a loaded cameras.json; a clear error where the lab has none."""
+    T = calibration.get("T_table_from_optitrack")
+    if T is None:
+        raise CalibrationError(f"{where}: no OptiTrack-to-table transform: "
+                               f"{calibration.get('T_table_from_optitrack_reason', 'none recorded')}")
+    return np.asarray(T, float)
+
+
+NO_OPTITRACK = "the lab has no OptiTrack recording (the calibration rule had no optitrack input)"
+
+
+def optitrack_record(optitrack: dict[str, pd.DataFrame] | None) -> dict:
+    """cameras.json's OptiTrack-to-table entries: the fit on the table markers, or null and the reason."""
+    if optitrack is None:
+        log.info("no OptiTrack-to-table transform: %s", NO_OPTITRACK)
+        return {"T_table_from_optitrack": None, "optitrack_fit_rms_m": None,
+                "T_table_from_optitrack_reason": NO_OPTITRACK}
+    T, rms = optitrack_to_table(optitrack)
+    return {"T_table_from_optitrack": T.tolist(), "optitrack_fit_rms_m": rms}
+
+
+def fit_optitrack_to_table(
+    marker_positions_optitrack: np.ndarray, marker_positions_table: np.ndarray
+) -> tuple[np.ndarray, float]:
+    """T_table_from_optitrack (4x4) from K >= 3 markers measured in both frames, and its RMS residual (m)."""
+    T, rms = fit_rigid_transform(marker_positions_optitrack, marker_positions_table)
+    log.info("OptiTrack-to-table fit on %d markers: RMS residual %.2f mm",
+             len(marker_positions_table), 1e3 * rms)
+    return T, rms
+
+
+def optitrack_to_table(optitrack: dict[str, pd.DataFrame],
+                       marker_prefix: str = "table_marker_") -> tuple[np.ndarray, float]:
+    """T_table_from_optitrack from the table-corner markers (each marker's median), and its RMS (m)."""
+    names = sorted((b for b in optitrack if b.startswith(marker_prefix)),
+                   key=lambda b: int(b[len(marker_prefix):]))
+    if len(names) < 3:
+        raise ValueError(f"need >= 3 table markers '{marker_prefix}<i>' in the OptiTrack stream, "
+                         f"found {names}")
+    measured = np.array([optitrack[b][["x", "y", "z"]].median().to_numpy() for b in names])
+    known = TABLE_MARKERS[[int(b[len(marker_prefix):]) for b in names]]
+    return fit_optitrack_to_table(measured, known)

@@ -1,0 +1,289 @@
+"""Ball detection (the paper's appendix method): an HSV threshold for orange, the largest blob, and its
+sub-pixel centre, searched in a window around the previous detection.
+
+Thresholds, from the twin renderer's colour table (twin.render's docstring, OpenCV HSV) and measured
+on its streams (480x360, JPEG q90 4:4:4):
+- H 8..19: the ball is H 12; red rubber and the extinguisher (H 0-1) fall below, the ball bucket
+  (H 24) above. 8 rather than the table's 6 drops red-on-skin edge blends (H 2-8) too.
+- S >= 170: the ball is S 235 (its blurred pixels >= 200 in the middle); skin (S <= 140), the paddle
+  handle (100) and the poster (90) fall below. At the suggested 150, JPEG noise lifts 3-7 px patches
+  of skin over the line in nearly every frame, so with no ball in play the largest blob is skin.
+- V >= 110: the ball is V 150..245 (shaded); the cardboard box (V 70) falls below.
+- 4 px minimum area at 480x360 (36 at 1440x1080): isolated 1-3 px blends at red/skin edges still pass
+  the colour test (at 3 px, 0.8 % of one stream's frames were such specks); the ball's blob is >= 4 px
+  when at least half of it is visible (recall stayed >= 99.87 % on six streams). Maximum 100 px
+  (900 at 1440x1080): the ball's blob is at most 25 px on the twin; a 4x margin for nearer cameras.
+- Red/yellow seams are not balls (`_is_seam`): a blob with both saturated red and saturated yellow in
+  the ring around it. On the default run's four cam3 streams false detections fell from 0.2-1.7 % of
+  the frames to 0-0.24 %, recall unchanged or up (99.4-99.6 %).
+
+Sub-pixel centre: the centroid of the blob and its 1-px rim of orange-hued pixels, each weighted by its
+saturation above the local background's (the median over the rim around the blob). Motion blur and
+anti-aliasing mix the ball into its edge pixels in proportion to coverage, so those weights use the
+partial pixels that a binary mask drops. Against the twin's truth (visibility >= 0.5, 1341 balls in
+two 480x360 streams): median error 0.115 px, p95 0.29 px. Measured alternatives: the binary blob's
+centroid 0.180 / 0.39 px; saturation x value weights 0.18 / 0.34; (R - B) above the rim's 0.15 / 0.50;
+linear unmixing of each rim pixel into ball colour and rim median 0.07 / 0.44 (exact on a flat
+background, but the ball's shading and cluttered rims give it the longer tail). Saturation is not
+linear in coverage where the background is itself saturated (blue-green wall, table top): a blend
+passes through grey, so there a 1.5-2 px disc's centre errs up to 0.25 px; on grey, < 0.1 px.
+
+Cost at 480x360 (benchmarks/bench_detection.py): ~0.2 ms in a window, ~1 ms on a whole frame (the HSV
+conversion and inRange of every pixel), against ~2 ms to decode the JPEG. Whole frames are searched
+whenever the ball was not found in the frame before, i.e. between rallies.
+
+Streams 1440 px wide and more are decoded reduced (`stream_reduction`: 1/2 at 1440x1080; below 1440 px
+wide, full resolution, so the default 480x360 run is unchanged). At 1440x1080 q90 a full decode takes
+~4.3 ms and a whole-frame search ~2.2 ms more: full-resolution detection ran at 0.73-0.76 of decoding's
+frame rate. Most of the decode is libjpeg's entropy decoding, which its DCT scaling cannot skip: at 1/2
+it costs ~0.8 of the full decode, at 1/8 still ~0.65. So the ball is searched, tracked and measured on
+the 1/2 decode:
+- Its blobs count from CANDIDATE_AREA of the minimum area: a ball's blended rim falls below the
+  saturation threshold on the reduced image as on the full one, so a ball at the minimum area (36 px at
+  1440, radius 3.4) keeps about half of its 9 px at 1/2. So searched, the 1/2 decodes of four twin
+  cameras showed every visible ball and, in 1779 frames without one, no candidate.
+- The centre is measured as at full resolution, on the window around the blob upsampled bicubically by
+  2 (the reduced image's own centroid: median error from 0.003 px less to 0.015 px more, p95 up to
+  0.07 px more).
+- Where the upsampled blob is below the minimum area, or a tracked ball is not near its last position,
+  the frame is decoded at full resolution and searched around it as before; a ball found there is
+  tracked at full resolution until it is lost.
+1/4 would search whole frames for less (~0.7 of a full decode), but a ball at the minimum area is under
+1 px in radius there: on a far camera (radius 3.6 px at 1440) 3 of 314 visible balls went unseen.
+Measured on four twin cameras, 2 rallies each at 1440x1080, full resolution -> reduced: recall 100 ->
+100, 96.2 -> 96.5, 100 -> 100, 100 -> 100 %; median error 0.184 -> 0.193, 0.137 -> 0.167, 0.179 -> 0.182,
+0.154 -> 0.172 px; frame rate 1.04-1.07 of decoding alone, from 0.75.
+"""
+
+import functools
+import logging
+from collections.abc import Iterable
+from dataclasses import dataclass, replace
+
+import cv2
+import numpy as np
+import pandas as pd
+
+log = logging.getLogger(__name__)
+
+
+REFERENCE_WIDTH = 1440  # px: the lab cameras' width, at which the pixel sizes of BallDetector are stated
+RIM_HUE = (5, 22)  # OpenCV hue of rim pixels that may carry part of the ball (orange blended with anything)
+_RIM_KERNEL = np.ones((3, 3), np.uint8)
+# A red/yellow seam: where saturated red (H <= 4 or >= 170) meets saturated yellow (H 21..35), JPEG and
+# anti-aliasing blend the two into true orange, a few pixels that pass every colour test (the far
+# player's red rubber held in front of the yellow ball bucket: 1.1-1.7 % of one camera's frames). A ball
+# shows one background around it, so a blob with both colours in its ring is a seam.
+SEAM_RED_HUE, SEAM_YELLOW_HUE = (4, 170), (21, 35)
+SEAM_MIN_PX = 2  # pixels of each colour in the 2-px ring around a blob that make it a seam
+_SEAM_KERNEL = np.ones((5, 5), np.uint8)
+# Streams are searched and tracked on the image libjpeg decodes at 1/reduction (module docstring)
+DECODE_WIDTH_PX = 720  # px, the narrowest decoded image: 1/2 of REFERENCE_WIDTH
+CANDIDATE_AREA = 0.5  # of the minimum area: what a reduced blob keeps of a ball at the minimum area
+
+
+@dataclass(frozen=True)
+class BallDetector:
+    """Parameters of the detector; pixel sizes at REFERENCE_WIDTH, scaled to the image's width."""
+
+    hue_min: int = 8  # OpenCV hue, 0..179
+    hue_max: int = 19
+    saturation_min: int = 170  # 0..255
+    value_min: int = 110  # 0..255
+    min_area_px: float = 36.0  # blob area bounds, px at REFERENCE_WIDTH (area scales with width^2)
+    max_area_px: float = 900.0
+    window_px: float = 200.0  # side of the square searched around the previous detection, px
+
+    def scaled(self, width: int) -> tuple[float, float, int]:
+        """(min area, max area, half window side) in pixels of an image `width` px wide."""
+        scale = width / REFERENCE_WIDTH
+        half_window = max(1, round(self.window_px * scale / 2))
+        return self.min_area_px * scale**2, self.max_area_px * scale**2, half_window
+
+
+def _is_seam(hsv: np.ndarray, x: int, y: int, blob: np.ndarray, saturation_min: int) -> bool:
+    """Whether a blob (mask at x, y of `hsv`) lies on a red/yellow seam (see SEAM_RED_HUE)."""
+    h, w = blob.shape
+    x0, y0 = max(x - 2, 0), max(y - 2, 0)
+    patch = hsv[y0:y + h + 2, x0:x + w + 2]
+    core = np.zeros(patch.shape[:2], np.uint8)
+    core[y - y0:y - y0 + h, x - x0:x - x0 + w] = blob
+    ring = (cv2.dilate(core, _SEAM_KERNEL) > core) & (patch[..., 1] >= saturation_min)
+    hue = patch[..., 0]
+    red = ring & ((hue <= SEAM_RED_HUE[0]) | (hue >= SEAM_RED_HUE[1]))
+    yellow = ring & (hue >= SEAM_YELLOW_HUE[0]) & (hue <= SEAM_YELLOW_HUE[1])
+    return int(red.sum()) >= SEAM_MIN_PX and int(yellow.sum()) >= SEAM_MIN_PX
+
+
+def _largest_blob(mask: np.ndarray, min_area: float, max_area: float, hsv: np.ndarray, saturation_min: int):
+    """(bounding box x, y, w, h, blob mask (h, w) uint8 0/1, pixel count) of the largest blob within the
+    area bounds that is not a red/yellow seam (`_is_seam`), or None.
+
+    Blobs are found by cv2.findContours (0.07 ms on a 480x360 mask, against 2 ms for
+    connectedComponentsWithStats, which labels the whole background too) but measured by pixel count:
+    cv2.contourArea of a 3-4 px blob is 0-1, its polygon running through the pixel centres.
+    """
+    contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    best = None
+    for contour in contours:
+        x, y, w, h = cv2.boundingRect(contour)
+        if w * h < min_area:  # cannot hold enough pixels: most specks end here
+            continue
+        blob = np.zeros((h, w), np.uint8)
+        cv2.drawContours(blob, [contour], -1, 1, cv2.FILLED, offset=(-x, -y))
+        blob &= mask[y:y + h, x:x + w]  # inRange's 255 -> 1; holes stay out
+        area = int(blob.sum())
+        if min_area <= area <= max_area and (best is None or area > best[5]) \
+                and not _is_seam(hsv, x, y, blob, saturation_min):
+            best = (x, y, w, h, blob, area)
+    return best
+
+
+def _weighted_centre(hsv: np.ndarray, x: int, y: int, blob: np.ndarray) -> tuple[float, float]:
+    """Saturation-weighted centroid (u, v) of a blob (mask at x, y of `hsv`) and its orange rim."""
+    h, w = blob.shape
+    x0, y0 = max(x - 1, 0), max(y - 1, 0)
+    x1, y1 = min(x + w + 1, hsv.shape[1]), min(y + h + 1, hsv.shape[0])
+    patch = hsv[y0:y1, x0:x1]
+    core = np.zeros(patch.shape[:2], np.uint8)
+    core[y - y0:y - y0 + h, x - x0:x - x0 + w] = blob
+    saturation = patch[..., 1].astype(np.float32)
+    rim = core == 0
+    background = np.median(saturation[rim]) if rim.any() else 0.0
+    orange_hue = cv2.inRange(patch[..., 0], RIM_HUE[0], RIM_HUE[1]) // 255
+    weights = np.maximum(saturation - background, 0) * (cv2.dilate(core, _RIM_KERNEL) & orange_hue)
+    total = weights.sum()
+    if total <= 0:  # a rim as saturated as the blob (orange against red rubber): the blob's own centroid
+        weights, total = core.astype(np.float32), core.sum()
+    # first moments in numpy, not cv2.moments: that reads an (N, 2) patch (a 1-px wide blob at the
+    # image border) as N points of a contour
+    return (x0 + weights.sum(axis=0) @ np.arange(weights.shape[1]) / total,
+            y0 + weights.sum(axis=1) @ np.arange(weights.shape[0]) / total)
+
+
+def detect_ball(image_bgr: np.ndarray, detector: BallDetector,
+                previous_uv: tuple[float, float] | None = None) -> tuple[float, float, int] | None:
+    """(u, v, area_px) of the ball in a BGR image, or None; searches around previous_uv when given.
+
+    u, v: pixel coordinates (OpenCV: pixel centres at integers); area_px: the thresholded blob's size.
+    """
+    height, width = image_bgr.shape[:2]
+    min_area, max_area, half = detector.scaled(width)
+    x0, y0 = 0, 0
+    window = image_bgr
+    if previous_uv is not None:
+        cu = min(max(int(round(previous_uv[0])), 0), width - 1)
+        cv = min(max(int(round(previous_uv[1])), 0), height - 1)
+        x0, y0 = max(cu - half, 0), max(cv - half, 0)
+        window = image_bgr[y0:cv + half + 1, x0:cu + half + 1]
+    hsv = cv2.cvtColor(window, cv2.COLOR_BGR2HSV)
+    mask = cv2.inRange(hsv, (detector.hue_min, detector.saturation_min, detector.value_min),
+                       (detector.hue_max, 255, 255))
+    found = _largest_blob(mask, min_area, max_area, hsv, detector.saturation_min)
+    if found is None:
+        return None
+    x, y, _, _, blob, area = found
+    u, v = _weighted_centre(hsv, x, y, blob)
+    return x0 + u, y0 + v, area
+
+
+def stream_reduction(width: int) -> int:
+    """The decoder reduction (1, 2, 4 or 8) of a stream `width` px wide: the largest that keeps the image
+    >= DECODE_WIDTH_PX wide."""
+    return next((r for r in (8, 4, 2) if width / r >= DECODE_WIDTH_PX), 1)
+
+
+def _decoded(frame, reduction: int) -> tuple[np.ndarray | None, str]:
+    """(image at 1/reduction, '') or (None or the damaged image, the decoder's complaint)."""
+    image, reason = frame.decode(reduction)
+    return image, reason or ("" if image is not None else "no image")
+
+
+def _upsampled_centre(image: np.ndarray, reduction: int, found, detector: BallDetector) -> tuple:
+    """(u, v, area_px) in full-resolution pixels of a ball found at (u, v, area) on an image decoded at
+    1/reduction, measured as at full resolution on the window around it upsampled bicubically."""
+    width = image.shape[1] * reduction
+    min_area, max_area, _ = detector.scaled(width)
+    half = int(np.ceil(np.sqrt(max_area) / reduction)) + 2  # reduced px: the largest blob and its rim
+    cu, cv = int(round(found[0])), int(round(found[1]))
+    x0, y0 = max(cu - half, 0), max(cv - half, 0)
+    window = cv2.resize(image[y0:cv + half + 1, x0:cu + half + 1], None, fx=reduction, fy=reduction,
+                        interpolation=cv2.INTER_CUBIC)
+    hsv = cv2.cvtColor(window, cv2.COLOR_BGR2HSV)
+    mask = cv2.inRange(hsv, (detector.hue_min, detector.saturation_min, detector.value_min),
+                       (detector.hue_max, 255, 255))
+    blob = _largest_blob(mask, min_area * CANDIDATE_AREA, max_area, hsv, detector.saturation_min)
+    offset = (reduction - 1) / 2  # a reduced pixel averages reduction x reduction full ones: their centre
+    if blob is None:  # the interpolation lost it: the reduced image's centre
+        return reduction * found[0] + offset, reduction * found[1] + offset, found[2] * reduction**2
+    x, y, _, _, pixels, area = blob
+    u, v = _weighted_centre(hsv, x, y, pixels)
+    # upsampled pixel j lies at reduced (j + 0.5) / reduction - 0.5, i.e. at full-resolution j + reduction x0
+    return u + reduction * x0, v + reduction * y0, area
+
+
+def _ball_at(image: np.ndarray, reduction: int, detector: BallDetector, near_uv) -> tuple | None:
+    """(u, v, area_px) in full-resolution pixels of the ball in an image decoded at 1/reduction, searched
+    around near_uv (full-resolution px) or everywhere, or None. On a reduced image the search takes
+    blobs from CANDIDATE_AREA of the minimum area, and the area is the upsampled blob's."""
+    if reduction == 1:
+        return detect_ball(image, detector, near_uv)
+    offset = (reduction - 1) / 2
+    near = None if near_uv is None else ((near_uv[0] - offset) / reduction, (near_uv[1] - offset) / reduction)
+    found = detect_ball(image, _candidates(detector), near)
+    return None if found is None else _upsampled_centre(image, reduction, found, detector)
+
+
+@functools.cache
+def _candidates(detector: BallDetector) -> BallDetector:
+    """The detector taking blobs from CANDIDATE_AREA of its minimum area."""
+    return replace(detector, min_area_px=detector.min_area_px * CANDIDATE_AREA)
+
+
+def _detect_frame(frame, detector: BallDetector, previous, level: int, reduction: int):
+    """(ball or None, the decoder's complaint, the reduction the ball was found at) of one frame: around
+    `previous` at 1/level when there is one, else everywhere at 1/reduction. Where a reduced image shows
+    no ball near the previous one, or a blob below the minimum area, the full-resolution image decides."""
+    scale = reduction if previous is None else level
+    image, reason = _decoded(frame, scale)
+    if reason:
+        return None, reason, scale
+    found = _ball_at(image, scale, detector, previous)
+    lost = found is None and previous is not None
+    small = found is not None and found[2] < detector.scaled(image.shape[1] * scale)[0]
+    if scale > 1 and (lost or small):
+        near = previous if lost else found[:2]
+        image, reason = _decoded(frame, 1)
+        return (None if reason else detect_ball(image, detector, near)), reason, 1
+    return found, "", scale
+
+
+def detect_stream(frames: Iterable, detector: BallDetector, reduction: int | None = None) -> pd.DataFrame:
+    """Detections (DETECTIONS' columns) of a stream of frames, decoding one at a time.
+
+    frames: anything with `.time_ns` and `.decode(reduction) -> (BGR image or None, complaint or '')`
+    (pingpong.io.camera_streams.Frame: JPEG, raw and video streams alike). reduction: the decoder's, from
+    the first image's width (`stream_reduction`) unless given; 1 searches every frame at full resolution.
+    Each frame is searched around the previous frame's detection, the whole frame when there was none.
+    A frame whose decode complains (damaged, or no image) is logged, marked decode_ok=False and not
+    searched, even where the decoder made an image of it; tracking restarts.
+    """
+    times, us, vs, areas, decoded = [], [], [], [], []
+    previous, level = None, 1  # the last detection (full-resolution px) and the reduction it was found at
+    for frame in frames:
+        if reduction is None:  # the first image that decodes sets the stream's reduction
+            image, _ = frame.decode(1)
+            reduction = None if image is None else stream_reduction(image.shape[1])
+        found, reason, level = _detect_frame(frame, detector, previous, level, reduction or 1)
+        if reason:
+            log.warning("frame at %d ns: %s; skipped", frame.time_ns, reason)
+        previous = found[:2] if found is not None else None
+        times.append(frame.time_ns)
+        decoded.append(not reason)
+        us.append(found[0] if found else np.nan)
+        vs.append(found[1] if found else np.nan)
+        areas.append(found[2] if found else 0)
+    detected = np.isfinite(np.asarray(us, np.float64))
+    return pd.DataFrame({"time_ns": np.asarray(times, np.int64), "u": np.asarray(us, np.float64),
+                         "v": np.asarray(vs, np.float64), "area_px": np.asarray(areas, np.int32),
+                         "detected": detected, "decode_ok": np.asarray(decoded, bool)})

@@ -1,0 +1,154 @@
+"""Multi-view triangulation of ball centres and body joints, vectorised over all points.
+
+Points are triangulated by the linear DLT on undistorted pixels, as one batched SVD over all
+points (OpenCV's cv2.triangulatePoints solves the same system but only for two views and,
+called per point, is orders of magnitude slower; see benchmarks/bench_triangulation.py).
+Outlier views are rejected by their reprojection error through the real (distorted) lens.
+"""
+
+from itertools import combinations
+
+import numpy as np
+import pandas as pd
+
+from pingpong.common.camera import Camera
+from pingpong.frames import MODEL_JOINT_IDS
+
+
+def triangulate_dlt(P: np.ndarray, pixels: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """World points (N, 3) from projection matrices P (C, 3, 4) and undistorted pixels (N, C, 2).
+
+    mask (N, C) says which views to use; a point with fewer than two is NaN. Each used view
+    contributes the rows u * P[2] - P[0] and v * P[2] - P[1] of the homogeneous system A X = 0
+    (the rows of unused views are zeroed, which leaves the solution unchanged), and X is the
+    right singular vector of the smallest singular value.
+    """
+    P = np.asarray(P, float)
+    px = np.asarray(pixels, float)
+    mask = np.asarray(mask, bool) & np.isfinite(px).all(axis=-1)
+    n_points, n_cams = mask.shape
+    px = np.where(mask[..., None], px, 0.0)
+    rows = px[..., None] * P[None, :, 2:3, :] - P[None, :, 0:2, :]  # (N, C, 2, 4)
+    A = (rows * mask[..., None, None]).reshape(n_points, 2 * n_cams, 4)
+    _, _, vh = np.linalg.svd(A, full_matrices=False)
+    X = vh[:, -1, :]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        points = X[:, :3] / X[:, 3:4]
+    points[mask.sum(axis=1) < 2] = np.nan
+    return points
+
+
+def reprojection_errors(cameras: list[Camera], points: np.ndarray, pixels: np.ndarray) -> np.ndarray:
+    """Per-view distance (N, C) in pixels between the lens projection of points (N, 3) and the
+    observed distorted pixels (N, C, 2); inf where the point lies behind the camera, NaN where unseen."""
+    errors = np.full(pixels.shape[:2], np.nan)
+    finite = np.isfinite(points).all(axis=1)
+    for c, cam in enumerate(cameras):
+        projected = cam.project(points[finite])
+        err = np.linalg.norm(projected - pixels[finite, c], axis=1)
+        err[cam.depth(points[finite]) <= 0] = np.inf  # projectPoints mirrors such points into view
+        errors[finite, c] = err
+    return errors
+
+
+def reprojection_gate_px(cameras: list[Camera], share_of_diagonal: float) -> np.ndarray:
+    """Each camera's outlier gate (C,) px: a share of its image diagonal, so that one setting holds from
+    480x360 (0.005: 3.0 px, the gate the default run was tuned with) to 1920x1080 (11.0 px), where a
+    fixed 3 px gate dropped 19 % of a real recording's joints and a 15 px gate left a 6 mm median."""
+    return share_of_diagonal * np.array([np.hypot(c.width, c.height) for c in cameras], float)
+
+
+def triangulate_robust(
+    cameras: list[Camera], pixels_distorted: np.ndarray, max_reproj_px, min_views: int = 2
+) -> dict[str, np.ndarray]:
+    """Triangulate points (N, 3) seen in distorted pixels (N, C, 2), NaN where a camera missed them.
+
+    Tries every camera subset with at least `min_views` views, largest first; a point takes the
+    largest subset it is seen in whose views all reproject within `max_reproj_px` (px: one gate, or
+    one per camera (C,), see reprojection_gate_px), the lowest RMS among subsets of that size, so
+    one bad view is dropped rather than pulling the point off. Points with no such subset are NaN
+    with n_views 0. Loops over the (at most 2^C) subsets, never over points. For joints pass
+    N = frames * joints.
+
+    Returns points (N, 3) in the cameras' world frame, n_views (N,), reproj_rms_px (N,) over
+    the used views, and used_mask (N, C).
+    """
+    px = np.asarray(pixels_distorted, float)
+    n_points, n_cams = px.shape[:2]
+    if n_cams != len(cameras):
+        raise ValueError(f"pixels have {n_cams} views but {len(cameras)} cameras were given")
+    if min_views < 2:
+        raise ValueError(f"min_views must be >= 2, got {min_views}")
+    seen = np.isfinite(px).all(axis=-1)
+    undistorted = np.full_like(px, np.nan)
+    for c, cam in enumerate(cameras):
+        undistorted[seen[:, c], c] = cam.undistort_pixels(px[seen[:, c], c])
+    P = np.stack([cam.P for cam in cameras])
+    gate = np.broadcast_to(np.asarray(max_reproj_px, float), (n_cams,))
+
+    points = np.full((n_points, 3), np.nan)
+    rms = np.full(n_points, np.nan)
+    used = np.zeros((n_points, n_cams), bool)
+    unresolved = seen.sum(axis=1) >= min_views
+    for size in range(n_cams, min_views - 1, -1):
+        best_rms = np.full(n_points, np.inf)
+        for subset in combinations(range(n_cams), size):
+            views = list(subset)
+            idx = np.flatnonzero(unresolved & seen[:, views].all(axis=1))
+            if len(idx) == 0:
+                continue
+            candidate = triangulate_dlt(P[views], undistorted[idx][:, views], np.ones((len(idx), size), bool))
+            err = reprojection_errors([cameras[c] for c in views], candidate, px[idx][:, views])
+            candidate_rms = np.sqrt(np.mean(err**2, axis=1))
+            better = (err <= gate[views]).all(axis=1) & (candidate_rms < best_rms[idx])
+            take = idx[better]
+            points[take] = candidate[better]
+            rms[take] = candidate_rms[better]
+            best_rms[take] = candidate_rms[better]
+            used[take] = False
+            used[np.ix_(take, views)] = True
+        unresolved &= ~np.isfinite(best_rms)
+    return {"points": points, "n_views": used.sum(axis=1), "reproj_rms_px": rms, "used_mask": used}
+
+
+
+
+def _aligned_times(tables: list[pd.DataFrame]) -> np.ndarray:
+    """The camera clock shared by every view (the cameras are synchronised: equal frame times)."""
+    times = tables[0]["time_ns"].unique()
+    for table in tables[1:]:
+        if not np.array_equal(table["time_ns"].unique(), times):
+            raise ValueError("camera frame times differ between views: the cameras must share a clock")
+    return times
+
+
+def ball3d_table(cameras: list[Camera], detections: list[pd.DataFrame], max_reproj_px,
+                 min_views: int = 2) -> pd.DataFrame:
+    """The ball's 3D centre per camera frame from each camera's detections (table frame)."""
+    times = _aligned_times(detections)
+    px = np.stack([np.where(d["detected"].to_numpy()[:, None], d[["u", "v"]].to_numpy(), np.nan)
+                   for d in detections], axis=1)
+    tri = triangulate_robust(cameras, px, max_reproj_px, min_views)
+    return pd.DataFrame({"time_ns": times, **dict(zip("xyz", tri["points"].T, strict=True)),
+                         "n_views": tri["n_views"], "reproj_rms_px": tri["reproj_rms_px"]})
+
+
+def pose3d_table(cameras: list[Camera], poses2d: list[pd.DataFrame], max_reproj_px,
+                 min_views: int = 2) -> pd.DataFrame:
+    """Both players' 8 model joints in 3D per frame; a joint seen well by < min_views cameras is NaN."""
+    parts = []
+    for player in ("near", "far"):
+        views = [p[p["player"] == player] for p in poses2d]
+        times = _aligned_times(views)
+        n_joints = len(MODEL_JOINT_IDS)
+        px = np.stack([np.stack([v[[f"j{j:02d}_u", f"j{j:02d}_v"]].to_numpy() for j in MODEL_JOINT_IDS],
+                                axis=1) for v in views], axis=2)  # (F, 8, C, 2)
+        tri = triangulate_robust(cameras, px.reshape(-1, len(cameras), 2), max_reproj_px, min_views)
+        points = tri["points"].reshape(len(times), n_joints, 3)
+        n_views = tri["n_views"].reshape(len(times), n_joints)
+        cols = {}
+        for k, j in enumerate(MODEL_JOINT_IDS):
+            cols |= {f"j{j:02d}_x": points[:, k, 0], f"j{j:02d}_y": points[:, k, 1],
+                     f"j{j:02d}_z": points[:, k, 2], f"j{j:02d}_n": n_views[:, k]}
+        parts.append(pd.DataFrame({"time_ns": times, "player": player, **cols}))
+    return pd.concat(parts, ignore_index=True)

@@ -1,0 +1,73 @@
+"""One camera's recording of a session: what it saw, frame by frame, as JPEG in MCAP, plus its truth.
+
+Truth paddle rotations follow twin.strokes (column 0 handle to tip, column 2 the forehand face
+normal); the renderer's paddle frame has y from handle to tip and z out of the red (forehand)
+side, so its columns are (-col1, col0, col2) of the truth's.
+"""
+
+from collections.abc import Iterator
+
+import numpy as np
+import pandas as pd
+
+from pingpong.common.camera import Camera
+from pingpong.frames import ROT_COLUMNS
+from pingpong.twin.render import Background, PlayerLook, encode_jpeg, frame_shapes, render_shapes
+from pingpong.twin.session import SIDES, ball_positions_at
+from pingpong.twin.truth import JOINT_COLUMNS
+
+EXPOSURE_NS = 4_000_000  # 4 ms shutter: the ball moves 2-5 cm in it, hence the motion blur
+EXPOSURE_SAMPLES = 5
+DISTRACTOR_PERIOD_NS = 20_000_000_000  # the ball bucket stands by the table every other 20 s
+SHAPE_CHUNK = 256  # frames whose shapes are built at once: vectorised, in bounded memory
+
+
+def render_paddle_rotation(truth_rot: np.ndarray) -> np.ndarray:
+    """Renderer paddle axes (..., 3, 3) from the truth's (see the module docstring)."""
+    return np.stack([-truth_rot[..., :, 1], truth_rot[..., :, 0], truth_rot[..., :, 2]], axis=-1)
+
+
+def _paddles_at(paddles: pd.DataFrame, time_ns: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Each player's paddle at the camera times: position interpolated, rotation of the nearest sample."""
+    out = {}
+    for player, rows in paddles.groupby("player", sort=False):
+        t = rows["time_ns"].to_numpy()
+        pos = np.column_stack([np.interp(time_ns, t, rows[c].to_numpy()) for c in ("px", "py", "pz")])
+        nearest = np.clip(np.searchsorted(t, time_ns), 0, len(t) - 1)
+        rot = rows[list(ROT_COLUMNS)].to_numpy()[nearest].reshape(-1, 3, 3)
+        out[player] = (pos, render_paddle_rotation(rot))
+    return out
+
+
+def frame_times(people: pd.DataFrame) -> np.ndarray:
+    return np.unique(people["time_ns"].to_numpy())
+
+
+def record_camera(camera: Camera, backgrounds: tuple[Background, Background], looks: list[PlayerLook],
+                  ball: pd.DataFrame, people: pd.DataFrame, paddles: pd.DataFrame, rng: np.random.Generator,
+                  jpeg_quality: int) -> Iterator[tuple[int, bytes, dict]]:
+    """(time_ns, JPEG, ball truth row) for every camera frame of the session, in time order."""
+    times = frame_times(people)
+    offsets = np.linspace(-EXPOSURE_NS / 2, EXPOSURE_NS / 2, EXPOSURE_SAMPLES).astype(np.int64)
+    exposure = ball_positions_at(ball, (times[:, None] + offsets[None]).ravel())
+    exposure = exposure.reshape(len(times), EXPOSURE_SAMPLES, 3)
+    bodies = {p: rows[list(JOINT_COLUMNS)].to_numpy().reshape(-1, 25, 3)
+              for p, rows in people.groupby("person", sort=False)}
+    pads = _paddles_at(paddles, times)
+    persons = list(SIDES.values()) + ["bystander"]
+    for first in range(0, len(times), SHAPE_CHUNK):
+        chunk = slice(first, first + SHAPE_CHUNK)
+        shapes = frame_shapes(camera, [bodies[p][chunk] for p in persons], looks,
+                              [(pads[p][0][chunk], pads[p][1][chunk]) for p in SIDES.values()])
+        for i, frame in enumerate(shapes, start=first):
+            yield _camera_frame(camera, backgrounds, times[i], exposure[i], frame, rng, jpeg_quality)
+
+
+def _camera_frame(camera, backgrounds, t, exposure, shapes, rng, jpeg_quality) -> tuple[int, bytes, dict]:
+    balls = exposure[np.isfinite(exposure).all(axis=1)]
+    background = backgrounds[int((t // DISTRACTOR_PERIOD_NS) % 2)]
+    image, truth = render_shapes(background, camera, balls if len(balls) else None, shapes, rng)
+    return int(t), encode_jpeg(image, jpeg_quality), {
+        "time_ns": int(t), "u": truth.pixel[0], "v": truth.pixel[1], "visibility": truth.visibility,
+        "radius_px": truth.radius_px}
+
