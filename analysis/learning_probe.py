@@ -22,8 +22,7 @@ import yaml
 
 from pingpong.common.artifacts import read_table
 from pingpong.common.config import validate_config
-from pingpong.curation.dataset import dataset_arrays
-from pingpong.curation.schemas import DATASET
+from pingpong.curation.schemas import DATASET, dataset_arrays
 from pingpong.learning.cv import make_net
 from pingpong.learning.train import predict, strike_points, train
 

@@ -13,8 +13,7 @@ import pandas as pd
 import torch
 
 from pingpong.common.artifacts import read_table
-from pingpong.curation.dataset import dataset_arrays
-from pingpong.curation.schemas import DATASET
+from pingpong.curation.schemas import DATASET, dataset_arrays
 from pingpong.learning.models import AnticipationNet, prediction_frames
 from pingpong.learning.schemas import PREDICTIONS
 from pingpong.reports.uncertainty import ORACLE_FRAMES

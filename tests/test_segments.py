@@ -15,11 +15,17 @@ from scipy.spatial.transform import Rotation, Slerp
 from workflow_util import DEFAULTS
 
 from pingpong.common.artifacts import Provenance, read_table, write_table
-from pingpong.curation.dataset import build_dataset, dataset_arrays, input_sequences
+from pingpong.curation.dataset import build_dataset, input_sequences
 from pingpong.curation.events import drop_ball_outliers
 from pingpong.curation.filtering import filter_session
 from pingpong.curation.labels import mirror_points
-from pingpong.curation.schemas import CANDIDATE_COLUMNS, CURATION_RULES, DATASET, EVENT_COLUMNS
+from pingpong.curation.schemas import (
+    CANDIDATE_COLUMNS,
+    CURATION_RULES,
+    DATASET,
+    EVENT_COLUMNS,
+    dataset_arrays,
+)
 from pingpong.curation.segments import CurationRules, curate_segments, find_segments
 from pingpong.curation.tracks import JOINT_XYZ
 from pingpong.frames import BALL_RADIUS, FRAME_NS, MODEL_JOINT_IDS, N_INPUT, ROT_COLUMNS, TABLE_HALF_WIDTH

@@ -116,12 +116,3 @@ def build_dataset(segments: pd.DataFrame, sessions: dict, rng: np.random.Generat
         raise ValueError("no kept hits in any session: nothing to build a dataset of")
     dataset = pd.concat(parts, ignore_index=True)[columns]
     return split_by_rally(dataset, rng, test_fraction, calibration_fraction, n_folds)
-
-
-def dataset_arrays(dataset: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
-    """(X (N, T, 39) float32, Y (N, 3) float32 labels a1, a2, b) of a DATASET table."""
-    n_frames = dataset["n_frames"].unique()
-    if len(n_frames) != 1:
-        raise ValueError(f"dataset mixes sequence lengths {sorted(n_frames)}")
-    X = np.stack(dataset["x"].to_numpy()).astype(np.float32).reshape(len(dataset), int(n_frames[0]), N_INPUT)
-    return X, dataset[["a1", "a2", "b"]].to_numpy(np.float32)

@@ -1,6 +1,11 @@
-"""The curation stages' table layouts (light: no stage code, so readers do not hash the stages)."""
+"""The curation stages' table layouts and the dataset's reader (light: no stage code and no SciPy, so
+readers, the training jobs among them, neither hash the stages nor pay their imports)."""
+
+import numpy as np
+import pandas as pd
 
 from pingpong.common.artifacts import Schema
+from pingpong.frames import N_INPUT
 
 EVENT_COLUMNS = ("kind", "index", "time_ns", "player", "side", "x", "y", "z")
 EVENTS = Schema("ball_events", 1, EVENT_COLUMNS)
@@ -15,3 +20,12 @@ SEGMENTS = Schema("segments", 1, (  # curate_segments
 DATASET = Schema("dataset", 1, (
     "session", "rally", "hit", "hitter", "t_hit_ns", "hit_frame", "n_frames", "x", "n_filled_frames",
     "a1", "a2", "b", "strike_x", "strike_z", "strike_x_labels", "region", "split", "fold"))
+
+
+def dataset_arrays(dataset: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+    """(X (N, T, 39) float32, Y (N, 3) float32 labels a1, a2, b) of a DATASET table."""
+    n_frames = dataset["n_frames"].unique()
+    if len(n_frames) != 1:
+        raise ValueError(f"dataset mixes sequence lengths {sorted(n_frames)}")
+    X = np.stack(dataset["x"].to_numpy()).astype(np.float32).reshape(len(dataset), int(n_frames[0]), N_INPUT)
+    return X, dataset[["a1", "a2", "b"]].to_numpy(np.float32)

@@ -11,8 +11,7 @@ from pathlib import Path
 import pandas as pd
 
 from pingpong.common.artifacts import read_json, read_table, write_table
-from pingpong.curation.dataset import dataset_arrays
-from pingpong.curation.schemas import DATASET
+from pingpong.curation.schemas import DATASET, dataset_arrays
 from pingpong.learning.cv import BALL_ONLY, prediction_table
 from pingpong.learning.models import load_net
 from pingpong.learning.schemas import PREDICTIONS, SELECTION

@@ -1,8 +1,7 @@
 """Rule train_cv: one (configuration, fold) job of the cross-validated grid search."""
 
 from pingpong.common.artifacts import read_table, write_json
-from pingpong.curation.dataset import dataset_arrays
-from pingpong.curation.schemas import DATASET
+from pingpong.curation.schemas import DATASET, dataset_arrays
 from pingpong.learning.cv import TrainSettings, fit_fold
 from pingpong.learning.models import save_net
 from pingpong.learning.schemas import CV_RESULT

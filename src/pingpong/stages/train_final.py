@@ -2,8 +2,7 @@
 part (the ball-only baseline: fed the ball alone; final_{other inputs}: on the other kind of inputs)."""
 
 from pingpong.common.artifacts import read_json, read_table
-from pingpong.curation.dataset import dataset_arrays
-from pingpong.curation.schemas import DATASET
+from pingpong.curation.schemas import DATASET, dataset_arrays
 from pingpong.learning.cv import BALL_ONLY, TrainSettings, refit
 from pingpong.learning.models import save_net
 from pingpong.learning.schemas import SELECTION

@@ -3,7 +3,7 @@
 import numpy as np
 import pandas as pd
 
-from pingpong.curation.dataset import dataset_arrays
+from pingpong.curation.schemas import dataset_arrays
 from pingpong.learning.models import FRAMES_BEFORE_HIT
 from pingpong.learning.train import predict, strike_points
 from pingpong.uncertainty import estimators as _registered  # noqa: F401  (fills the registry)
