@@ -7,6 +7,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -171,3 +172,14 @@ def test_what_c_code_writes_on_fd2_reaches_the_stage_log(tmp_path):
                           check=True)
     assert log.read_text() == "Corrupt JPEG data: 3 extraneous bytes\n"
     assert proc.stderr == "after the block\n"  # fd 2 restored
+
+
+def test_a_failing_stage_writes_its_traceback_to_its_log(tmp_path):
+    """The error of a rule's job is in the log its Snakemake message points to (here: a param not given)."""
+    log = tmp_path / "report_sync.log"
+    stage = Path(__file__).resolve().parents[1] / "workflow" / "scripts" / "stage.py"
+    proc = subprocess.run([sys.executable, str(stage), "report_sync", "--log", str(log)], capture_output=True,
+                          text=True)
+    assert proc.returncode != 0
+    text = log.read_text()
+    assert "rule report_sync failed" in text and "Traceback" in text and "KeyError: 'sessions'" in text

@@ -123,4 +123,8 @@ def run_rule(smk=None) -> None:
         logging.basicConfig(stream=stream, level=logging.INFO, force=True,
                             format="%(asctime)s %(levelname)s %(name)s: %(message)s")
         logging.captureWarnings(True)
-        main(ctx)
+        try:
+            main(ctx)
+        except Exception:  # into the log too, where Snakemake's error message sends the reader
+            logging.exception("rule %s failed", ctx.stage)
+            raise
