@@ -11,7 +11,7 @@ setup: $(VENV)/.installed
 # find-links; uv does not look there); the project's own `torch==2.13.0` requirement is then already met
 # and pulls no CUDA packages. Everything else through uv (pinned), at the exact versions of
 # constraints.txt, so that runs on different days give the same artifacts: the same packages as pip
-# installs (checked: identical `pip list` but for pip and uv themselves); the whole setup 51-58 s, not ~100 s.
+# installs (checked: identical `pip list` but for pip and uv themselves); the whole setup 49-58 s, not ~100 s.
 # Byte-compiled at install, as pip does and uv does not by default: where PYTHONDONTWRITEBYTECODE is set
 # (these machines set it) every job would otherwise compile each module it imports, e.g. 1.45 s instead of
 # 0.54 s to import twin_openpose's stage; the project's own src/ likewise.
