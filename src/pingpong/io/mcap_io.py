@@ -124,6 +124,15 @@ class OptitrackWriter(_AtomicMcapWriter):
                                    publish_time=log_time_ns)
 
 
+def _check_schema(path: Path, schema: Schema | None, channel: Channel, schema_name: str,
+                  message_encoding: str) -> None:
+    """McapDamagedError unless the channel carries `schema_name` messages in `message_encoding`."""
+    if schema is None or schema.name != schema_name or channel.message_encoding != message_encoding:
+        raise McapDamagedError(
+            f"{path}: channel {channel.topic} has schema {None if schema is None else schema.name!r} "
+            f"({channel.message_encoding}), expected {message_encoding} {schema_name!r}")
+
+
 def _iter_messages(path: Path, schema_name: str, strict: bool, what: str, topic: str | None = None,
                    message_encoding: str = "protobuf"):
     """(topic, log_time, data) of every message (of `topic` alone when given, the others skipped),
@@ -135,12 +144,7 @@ def _iter_messages(path: Path, schema_name: str, strict: bool, what: str, topic:
             for schema, channel, message in reader.iter_messages(log_time_order=False):
                 if topic is not None and channel.topic != topic:
                     continue
-                if (schema is None or schema.name != schema_name
-                        or channel.message_encoding != message_encoding):
-                    raise McapDamagedError(
-                        f"{path}: channel {channel.topic} has schema "
-                        f"{None if schema is None else schema.name!r} ({channel.message_encoding}), "
-                        f"expected {message_encoding} {schema_name!r}")
+                _check_schema(path, schema, channel, schema_name, message_encoding)
                 yield channel.topic, message.log_time, message.data
                 last_ns = message.log_time
         except McapDamagedError:
@@ -208,8 +212,7 @@ def read_camera_times(path: str | os.PathLike, strict: bool = False, topic: str 
 def _indexed_times(path: Path, schema_name: str, topic: str | None,
                    message_encoding: str = "protobuf") -> list[int] | None:
     """log_times of the messages (of `topic` alone when given) in file order, from the file's chunk and
-    message indexes; None where the file has no complete index. The channels' schemas are checked as
-    _iter_messages checks them."""
+    message indexes; None where the file has no complete index."""
     with open(path, "rb") as f:
         try:
             summary = SeekingReader(f, validate_crcs=True).get_summary()
@@ -223,10 +226,7 @@ def _indexed_times(path: Path, schema_name: str, topic: str | None,
         for cid in sorted(wanted):
             channel = summary.channels[cid]
             schema = summary.schemas.get(channel.schema_id)
-            if schema is None or schema.name != schema_name or channel.message_encoding != message_encoding:
-                raise McapDamagedError(
-                    f"{path}: channel {channel.topic} has schema {None if schema is None else schema.name!r} "
-                    f"({channel.message_encoding}), expected {message_encoding} {schema_name!r}")
+            _check_schema(path, schema, channel, schema_name, message_encoding)
         entries = []
         for chunk in chunks:
             f.seek(chunk.chunk_start_offset + chunk.chunk_length)

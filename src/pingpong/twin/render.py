@@ -588,9 +588,10 @@ def _ball_layer(background: Background, camera: Camera, positions: np.ndarray):
     # only the rays that meet the ball at some instant of the exposure are shaded and occluded (about a
     # third of the box's); the others add exact zeros. The products above stay on all rays, so that every
     # value is what it was (a BLAS product of a subset may round differently).
-    rows = np.flatnonzero((disc >= 0).any(axis=1))
-    dd, dc, disc, d_light, d_world = dd[rows], dc[rows], disc[rows], d_light[rows], d_world[rows]
     hit = disc >= 0
+    rows = np.flatnonzero(hit.any(axis=1))
+    dd, dc, disc, hit = dd[rows], dc[rows], disc[rows], hit[rows]
+    d_light, d_world = d_light[rows], d_world[rows]
     s = (dc - np.sqrt(np.maximum(disc, 0.0))) / dd  # depth of the front surface
     # n . l with n = (s d - c) / r, without forming the normals
     n_dot_l = (s * d_light[:, None] - centres @ light) / BALL_RADIUS
