@@ -33,8 +33,8 @@ def _imported_modules(path: Path, src: Path) -> frozenset[str]:
 @functools.cache
 def _imports_in(source: str, filename: str, here: tuple[str, ...], is_init: bool) -> frozenset[str]:
     """_imported_modules of a module's source text, `here` its dotted parts. Cached on the text: the
-    rules' code hashes walk the same shared modules again and again (~800 parses of ~120 files, 5 s of
-    every Snakemake start), and an edited file is parsed anew."""
+    rules' code hashes walk the same shared modules again and again (~800 parses of 140 files: the 34
+    rules' hashes 1.7 s -> 0.56 s at every Snakemake start, measured), and an edited file is parsed anew."""
     tree = ast.parse(source, filename=filename)
     names: set[str] = set()
     if is_init:
