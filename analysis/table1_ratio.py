@@ -27,8 +27,8 @@ def main() -> None:
         early, late = errors[10].to_numpy(), errors[1].to_numpy()
         interval = bootstrap((late, early), median_ratio, paired=True, vectorized=True, n_resamples=2000,
                              method="percentile", rng=np.random.default_rng(0)).confidence_interval
-        print(f"{split}: {len(late)} hits, median error 10 / 1 frames before the hit {np.median(early):.1f} / "
-              f"{np.median(late):.1f} cm, ratio {median_ratio(late, early):.2f} "
+        print(f"{split}: {len(late)} hits, median error 10 / 1 frames before the hit "
+              f"{np.median(early):.1f} / {np.median(late):.1f} cm, ratio {median_ratio(late, early):.2f} "
               f"(95 % {interval.low:.2f}-{interval.high:.2f})")
 
 
