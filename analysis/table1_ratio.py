@@ -12,6 +12,7 @@ from scipy.stats import bootstrap
 
 from pingpong.common.artifacts import read_table
 from pingpong.learning.schemas import PREDICTIONS
+from pingpong.uncertainty.schemas import HIT_KEYS
 
 
 def median_ratio(late, early, axis=-1):
@@ -23,7 +24,7 @@ def main() -> None:
     final = predictions[predictions["model"] == "final"]
     for split in ("test", "train"):
         errors = final[final["split"] == split].pivot_table(
-            index=["session", "rally", "hit"], columns="frames_before_hit", values="abs_error") * 100
+            index=HIT_KEYS, columns="frames_before_hit", values="abs_error") * 100
         early, late = errors[10].to_numpy(), errors[1].to_numpy()
         interval = bootstrap((late, early), median_ratio, paired=True, vectorized=True, n_resamples=2000,
                              method="percentile", rng=np.random.default_rng(0)).confidence_interval
