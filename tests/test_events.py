@@ -50,6 +50,7 @@ def test_bounces_of_simulated_flights_within_a_frame(hopping_flights):
 
 def test_nan_gaps_neither_make_nor_hide_bounces(hopping_flights):
     rng = np.random.default_rng(2)
+    recovered = 0
     for t, noisy, _ in hopping_flights[:10]:
         found = detect_bounces(t, noisy)
         near = np.zeros(len(t), bool)
@@ -61,10 +62,21 @@ def test_nan_gaps_neither_make_nor_hide_bounces(hopping_flights):
         again = detect_bounces(t, gappy)
         assert np.array_equal(again["index"], found["index"])
         assert np.allclose(again["time"], found["time"], atol=2e-3)
-        # a bounce whose turning point is in a gap is lost, and nothing else appears
+        # a bounce whose turning point lies in a 3-frame gap is found beside it, fitted from beyond the gap,
+        # or lost when the samples beside it lie above the height tolerance: hiding each of the 153 bounces
+        # of the 30 flights in turn, 149 were found, 0.8 ms (median) and at most 5 ms off the truth
         hidden = noisy.copy()
-        hidden[found["index"][0] - 1:found["index"][0] + 2] = np.nan
-        assert len(detect_bounces(t, hidden)) == len(found) - 1
+        first = found["index"][0]
+        hidden[first - 1:first + 2] = np.nan
+        again = detect_bounces(t, hidden)
+        rest = again[again["index"] > first + 2]
+        assert np.array_equal(rest["index"], found["index"][1:])  # nothing else changes or appears
+        assert np.allclose(rest["time"], found["time"][1:], atol=2e-3)
+        if len(again) == len(found):
+            assert again["index"][0] in (first - 2, first + 2)
+            assert abs(again["time"][0] - found["time"][0]) < FRAME
+            recovered += 1
+    assert recovered >= 8  # measured: 9 of these 10
 
 
 def test_real_flights_bounce_on_the_frame_of_the_z_minimum():
@@ -111,6 +123,20 @@ def test_synthetic_reversal_at_a_paddle_is_a_hit():
     assert detect_hits(t, ball, {"B": other}).empty  # no paddle near: a reversal alone is no hit
     hitter[:] = np.nan
     assert detect_hits(t, ball, {"A": hitter}).empty  # an untracked paddle is not near
+
+
+def test_a_hit_hidden_behind_the_paddle_is_found():
+    """The ball unseen for the 2 frames around the contact (the paddle in front of it): at 6 m/s either
+    way, a line from the last sample before the gap to the first after has a slope of only 0.4 m/s."""
+    t = np.arange(0, 0.6, FRAME) + 0.004
+    t_hit = 0.3
+    s = t - t_hit
+    ball = np.column_stack([0.2 + 0.5 * s, 1.6 - 6.0 * np.abs(s), 0.35 + 1.0 * s - 4.905 * s**2])
+    ball[np.abs(s) < FRAME] = np.nan  # t = 0.294 and 0.304
+    hitter = np.tile([0.25, 1.65, 0.35], (len(t), 1))
+    hits = detect_hits(t, ball, {"A": hitter})
+    assert len(hits) == 1
+    assert abs(hits["time"][0] - t_hit) < 1e-9  # the lines fitted beyond the gap meet at the contact
 
 
 def rally(rng, strokes=4):

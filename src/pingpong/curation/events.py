@@ -2,7 +2,9 @@
 the filtering rule runs on the raw ball), and the unconfirmed samples dropped before.
 
 All detectors work on the finite samples only (a NaN row is a frame the ball was not seen), so NaN
-gaps neither create nor hide events, except one whose turning point falls inside a gap. Velocities are
+gaps neither create nor hide events; a turn inside a gap is found at the sample beside it, its slopes
+and meeting time fitted from beyond the gap (a bounce so hidden may still be lost: its nearest sample can
+lie above the height tolerance). Velocities are
 slopes of straight-line fits over `span` s either side of a sample, not sample differences, so that
 3 mm of triangulation noise (0.4 m/s on a 10 ms difference) cannot fake a turn.
 """
@@ -25,15 +27,33 @@ def _finite(times, ball):
     return index, times[index], ball[index]
 
 
+def _sampling_step(t: np.ndarray) -> float:
+    """The track's usual sampling interval (s): the median step between its finite samples."""
+    return float(np.median(np.diff(t))) if len(t) >= 2 else np.inf
+
+
 def _slope(t: np.ndarray, v: np.ndarray) -> float:
     """Least-squares slope of v(t); NaN with fewer than 2 samples."""
     return float(np.polyfit(t, v, 1)[0]) if len(t) >= 2 else np.nan
 
 
-def _turns(t: np.ndarray, v: np.ndarray, i: int, span: float) -> tuple[float, float]:
-    """Slopes of v over [t_i - span, t_i] and [t_i, t_i + span] (sample i in both)."""
-    lo, hi = np.searchsorted(t, t[i] - span), np.searchsorted(t, t[i] + span, side="right")
-    return _slope(t[lo:i + 1], v[lo:i + 1]), _slope(t[i:hi], v[i:hi])
+def _across_gaps(t: np.ndarray, i: int, step: float) -> tuple[int, int]:
+    """(first, last): sample i's neighbours before and after where more than 1.5 steps (s) away, else i.
+
+    A turn can lie in a gap (the ball hidden behind the paddle at contact): a fit from sample i across the
+    gap would straddle it, so the fits on that side start at the first sample beyond the gap instead.
+    """
+    first = i - 1 if i > 0 and t[i] - t[i - 1] > 1.5 * step else i
+    last = i + 1 if i + 1 < len(t) and t[i + 1] - t[i] > 1.5 * step else i
+    return first, last
+
+
+def _turns(t: np.ndarray, v: np.ndarray, i: int, span: float, step: float) -> tuple[float, float]:
+    """Slopes of v over span s up to sample i and from it (i in both), each side from beyond a gap next to
+    i without i (_across_gaps: measured, a hit hidden for 2 frames had an after-slope of 0.33 m/s)."""
+    first, last = _across_gaps(t, i, step)
+    lo, hi = np.searchsorted(t, t[first] - span), np.searchsorted(t, t[last] + span, side="right")
+    return _slope(t[lo:first + 1], v[lo:first + 1]), _slope(t[last:hi], v[last:hi])
 
 
 def _window_extreme(t: np.ndarray, v: np.ndarray, i: int, span: float, sign: float) -> bool:
@@ -42,25 +62,28 @@ def _window_extreme(t: np.ndarray, v: np.ndarray, i: int, span: float, sign: flo
     return lo + int(np.argmin(sign * v[lo:hi])) == i
 
 
-def _meeting_time(t: np.ndarray, v: np.ndarray, i: int, window: float, curvature: float) -> float:
-    """Time where curves fitted to v before and after sample i meet, i excluded from both fits.
+def _meeting_time(t: np.ndarray, v: np.ndarray, i: int, window: float, curvature: float,
+                  step: float) -> float:
+    """Time where curves fitted to v before and after sample i meet, i excluded from both fits, each over
+    window s from i's neighbour on its side (_across_gaps: beyond a gap next to i, else i).
 
     Both curves are v = curvature/2 (t - t_i)^2 + a + b (t - t_i) with the curvature given (gravity for a
     bounce's z, 0 for a hit's y): fitting it on ~8 noisy samples moves the meeting point by frames.
     Then the difference of the two curves is linear, so they meet once. Returns t_i when a side has
     fewer than 2 samples or the meeting point is more than one sampling interval away.
     """
+    first, last = _across_gaps(t, i, step)
     s = t - t[i]
     u = v - 0.5 * curvature * s**2
-    before = (s >= -window) & (s < 0)
-    after = (s > 0) & (s <= window)
+    before = (t >= t[first] - window) & (s < 0)
+    after = (s > 0) & (t <= t[last] + window)
     if before.sum() < 2 or after.sum() < 2:
         return float(t[i])
     b_pre, a_pre = np.polyfit(s[before], u[before], 1)
     b_post, a_post = np.polyfit(s[after], u[after], 1)
     meet = (a_post - a_pre) / (b_pre - b_post)
-    step = max(-s[before].max(), s[after].min())
-    return float(t[i] + meet) if abs(meet) <= step else float(t[i])
+    reach = max(-s[before].max(), s[after].min())
+    return float(t[i] + meet) if abs(meet) <= reach else float(t[i])
 
 
 def _over_table(xy: np.ndarray, extent) -> bool:
@@ -81,6 +104,7 @@ def detect_bounces(times, ball, table_z: float = 0.0, radius: float = BALL_RADIU
     subframe is False); x, y, z: the ball centre there; side: '+y' or '-y', the table half by y's sign.
     """
     index, t, p = _finite(times, ball)
+    step = _sampling_step(t)
     h = p[:, 2] - table_z - radius
     rows = []
     for i in range(1, len(t) - 1):
@@ -88,10 +112,10 @@ def detect_bounces(times, ball, table_z: float = 0.0, radius: float = BALL_RADIU
             continue
         if not _window_extreme(t, h, i, span, 1.0):
             continue
-        down, up = _turns(t, h, i, span)
+        down, up = _turns(t, h, i, span, step)
         if not (down <= -min_speed and up >= min_speed):
             continue
-        t_contact = _meeting_time(t, p[:, 2], i, fit_window, -GRAVITY) if subframe else float(t[i])
+        t_contact = _meeting_time(t, p[:, 2], i, fit_window, -GRAVITY, step) if subframe else float(t[i])
         x, y = (float(np.interp(t_contact, t, p[:, k])) for k in (0, 1))
         if not _over_table((x, y), table_extent):  # the contact, not the nearest frame (5 cm off at 5 m/s)
             continue
@@ -127,6 +151,7 @@ def detect_hits(times, ball, paddle_pos: dict, max_distance: float = 0.3, span: 
     y over span s either side meet; player: the nearest paddle's; x, y, z: the ball at the sample.
     """
     index, t, p = _finite(times, ball)
+    step = _sampling_step(t)
     paddles = {name: np.asarray(pos, float)[index] for name, pos in paddle_pos.items()}
     y = p[:, 1]
     rows = []
@@ -134,7 +159,7 @@ def detect_hits(times, ball, paddle_pos: dict, max_distance: float = 0.3, span: 
         sign = 1.0 if y[i] <= min(y[i - 1], y[i + 1]) else -1.0 if y[i] >= max(y[i - 1], y[i + 1]) else 0.0
         if sign == 0.0 or not _window_extreme(t, y, i, span, sign):
             continue
-        before, after = _turns(t, y, i, span)
+        before, after = _turns(t, y, i, span, step)
         if not (sign * before <= -min_speed and sign * after >= min_speed):
             continue
         on_table = p[i, 2] - table_z - radius < min_height and _over_table(p[i, :2], table_extent)
@@ -145,7 +170,8 @@ def detect_hits(times, ball, paddle_pos: dict, max_distance: float = 0.3, span: 
         player = min(distance, key=distance.get)
         if distance[player] > max_distance:
             continue
-        rows.append({"index": int(index[i]), "time": _meeting_time(t, y, i, span, 0.0), "player": player,
+        t_hit = _meeting_time(t, y, i, span, 0.0, step)
+        rows.append({"index": int(index[i]), "time": t_hit, "player": player,
                      "x": float(p[i, 0]), "y": float(p[i, 1]), "z": float(p[i, 2])})
     return pd.DataFrame(rows, columns=["index", "time", "player", "x", "y", "z"])
 
