@@ -2,9 +2,11 @@
 
 Determinism: weights are initialised from the net's own seed (models.AnticipationNet); here the
 shuffling uses a torch.Generator seeded with `seed` and dropout draws from torch's global stream,
-re-seeded with `seed` inside a forked random state (the caller's stream is left as it was), with
-torch.use_deterministic_algorithms on (warn only) for the run. Two runs with the same seed on
-the CPU give identical weights; on CUDA, cuDNN's RNN kernels may still differ in the last bits.
+re-seeded with `seed` inside a forked random state (the caller's stream is left as it was). Two runs
+with the same seed on the CPU give identical weights (the CPU kernels these nets use are deterministic);
+on CUDA, torch.use_deterministic_algorithms is on (warn only) for the run, and cuDNN's RNN kernels may
+still differ in the last bits. Not on the CPU: the switch imports torch's compiler stack, as
+torch.optim does (`adamw`), 1.5-2.3 s a process.
 """
 
 import logging
@@ -17,6 +19,7 @@ from tqdm.auto import tqdm
 
 from pingpong.curation.labels import reflect_frames, reflect_labels
 from pingpong.frames import STRIKE_Y
+from pingpong.learning.adamw import AdamW
 from pingpong.learning.loss import frame_losses, late_frame_weights, trajectory_loss
 from pingpong.learning.models import AnticipationNet, prediction_frames, prediction_mask, valid_mask
 
@@ -128,13 +131,14 @@ def train(net: AnticipationNet, X_train, Y_train, X_val, Y_val, lr: float, *, ba
     L_dev = None if lengths_train is None else torch.as_tensor(lengths_train).to(dev)
     mask_dev = prediction_mask(lengths_train, X_train.shape[1]).expand(len(X_train), -1).to(dev)
     weights_dev = late_frame_weights(X_train.shape[1], early_frame_weight).to(dev)
-    optimiser = torch.optim.AdamW(net.parameters(), lr=lr)
+    optimiser = AdamW(net.parameters(), lr=lr)
     shuffle = torch.Generator().manual_seed(seed)
     stopper = EarlyStopping(patience, min_delta)
     history, best_state = [], None
     prior = (torch.are_deterministic_algorithms_enabled(),
              torch.is_deterministic_algorithms_warn_only_enabled())
-    torch.use_deterministic_algorithms(True, warn_only=True)
+    if dev.type == "cuda":
+        torch.use_deterministic_algorithms(True, warn_only=True)
     try:
         with torch.random.fork_rng(devices=[dev.index or 0] if dev.type == "cuda" else []):
             torch.manual_seed(seed)
@@ -148,7 +152,7 @@ def train(net: AnticipationNet, X_train, Y_train, X_val, Y_val, lr: float, *, ba
                     idx = idx.to(dev)
                     out = net(X_dev[idx], None if L_dev is None else L_dev[idx])
                     loss = trajectory_loss(out, Y_dev[idx], mask_dev[idx], weights_dev)
-                    optimiser.zero_grad(set_to_none=True)
+                    optimiser.zero_grad()
                     loss.backward()
                     optimiser.step()
                     total += loss.detach()
@@ -166,7 +170,8 @@ def train(net: AnticipationNet, X_train, Y_train, X_val, Y_val, lr: float, *, ba
                 if stop:
                     break
     finally:
-        torch.use_deterministic_algorithms(prior[0], warn_only=prior[1])
+        if dev.type == "cuda":
+            torch.use_deterministic_algorithms(prior[0], warn_only=prior[1])
     log.info("trained %d epochs; best val loss %.4f at epoch %d", len(history), stopper.best_loss,
              stopper.best_epoch)
     net.cpu().load_state_dict(best_state)

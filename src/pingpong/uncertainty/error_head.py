@@ -13,6 +13,7 @@ import torch
 
 from pingpong.common.artifacts import Provenance, Schema, load_model, save_model
 from pingpong.frames import N_INPUT, N_PRED_FRAMES
+from pingpong.learning.adamw import AdamW
 from pingpong.learning.models import AnticipationNet, prediction_frames
 
 ERROR_FLOOR = 0.02  # m: errors below 2 cm count as 2 cm (the log of a near-zero error is noise)
@@ -40,7 +41,7 @@ def train_head(X: np.ndarray, strike_pred: np.ndarray, n_output: int, loss_of, r
                           mlp_layers=1, dropout=dropout, velocity=True, n_output=n_output, seed=seed)
     x = head_inputs(X, strike_pred)
     net.normaliser.fit(net.features(x))
-    optimiser = torch.optim.AdamW(net.parameters(), lr=lr, weight_decay=weight_decay)
+    optimiser = AdamW(net.parameters(), lr=lr, weight_decay=weight_decay)
     shuffle = np.random.default_rng(seed)  # minibatch order
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(seed)  # dropout masks
@@ -48,7 +49,7 @@ def train_head(X: np.ndarray, strike_pred: np.ndarray, n_output: int, loss_of, r
         for _ in range(epochs):
             for batch in np.array_split(shuffle.permutation(len(x)), min(N_BATCHES, len(x))):
                 loss = loss_of(prediction_frames(net(x[batch])), batch)
-                optimiser.zero_grad(set_to_none=True)
+                optimiser.zero_grad()
                 loss.backward()
                 optimiser.step()
     return net.eval()

@@ -9,6 +9,7 @@ import torch
 from torch import nn
 
 from pingpong.common.artifacts import Provenance, Schema, load_model, save_model
+from pingpong.learning.adamw import AdamW
 from pingpong.uncertainty.features import standardiser
 
 
@@ -48,13 +49,13 @@ def fit_quantile_heads(features: np.ndarray, residuals: np.ndarray, levels: tupl
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(int(rng.integers(2**31)))
         heads.net.apply(lambda m: m.reset_parameters() if isinstance(m, nn.Linear) else None)
-    optimiser = torch.optim.AdamW(heads.parameters(), lr=lr, weight_decay=weight_decay)
+    optimiser = AdamW(heads.parameters(), lr=lr, weight_decay=weight_decay)
     threads = torch.get_num_threads()
     torch.set_num_threads(1)  # the net is tiny: more threads only add waiting (30x slower on a busy CPU)
     try:
         for _ in range(epochs):  # no dropout or shuffling: the only randomness is the initial weights
             loss = pinball_loss(heads(x), y, levels)
-            optimiser.zero_grad(set_to_none=True)
+            optimiser.zero_grad()
             loss.backward()
             optimiser.step()
     finally:
