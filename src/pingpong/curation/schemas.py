@@ -17,8 +17,9 @@ CANDIDATE_COLUMNS = (  # find_segments
 SEGMENTS = Schema("segments", 1, (  # curate_segments
     *CANDIDATE_COLUMNS, "rally", "ball_missing_frames", "joint_missing_frames", "paddle_missing_frames",
     "a1", "a2", "b", "strike_x", "strike_z", "strike_x_labels", "region", "decision", "reasons"))
+HIT_KEYS = ["session", "rally", "hit"]  # what names a hit in the dataset and every table after it
 DATASET = Schema("dataset", 1, (
-    "session", "rally", "hit", "hitter", "t_hit_ns", "hit_frame", "n_frames", "x", "n_filled_frames",
+    *HIT_KEYS, "hitter", "t_hit_ns", "hit_frame", "n_frames", "x", "n_filled_frames",
     "a1", "a2", "b", "strike_x", "strike_z", "strike_x_labels", "region", "split", "fold"))
 
 

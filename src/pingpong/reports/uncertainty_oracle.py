@@ -16,12 +16,12 @@ import pandas as pd  # noqa: E402
 
 from pingpong.common.artifacts import read_table  # noqa: E402
 from pingpong.common.atomic import atomic_path, write_text_atomic  # noqa: E402
+from pingpong.curation.schemas import HIT_KEYS  # noqa: E402
 from pingpong.reports.curation_accuracy import nearest_shot  # noqa: E402
 from pingpong.twin import truth  # noqa: E402
 from pingpong.uncertainty.metrics import ause, spearman  # noqa: E402
 
 FINAL = "final"  # predictions' model: the selected configuration refit on the training part
-HIT_KEYS = ["session", "rally", "hit"]
 ORACLE_X = ["oracle_mean_x", "oracle_std_x", "oracle_q05_x", "oracle_q95_x"]
 SHOT_KEYS = ["session", "rally", "shot"]
 CAUSE_FRAMES = (30, 20, 10, 5, 1, 0)

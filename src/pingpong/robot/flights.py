@@ -18,10 +18,9 @@ import pandas as pd
 from pingpong.common.artifacts import read_table
 from pingpong.curation.causal import causal_lowpass
 from pingpong.curation.labels import mirror_points
+from pingpong.curation.schemas import HIT_KEYS
 from pingpong.frames import STRIKE_Y
 from pingpong.perception.schemas import BALL3D
-
-HIT_KEYS = ["session", "rally", "hit"]
 
 
 def hit_flight(ball: pd.DataFrame, t_hit_ns: int, hitter: str, max_duration_s: float = 1.5,
