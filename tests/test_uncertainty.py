@@ -3,6 +3,7 @@ exchangeable data, rank metrics against hand-computed cases, and the estimators 
 
 import json
 import math
+import sys
 
 import numpy as np
 import pandas as pd
@@ -344,7 +345,7 @@ class _KnownHetero:
         return hits.pred, self.std
 
 
-N_CAL_HITS = 42  # the calibration hits of the default run (README; 76 when it had 21 rallies a session)
+N_CAL_HITS = 41  # the calibration hits of the default run (README; 76 when it had 21 rallies a session)
 FRAMES_USED = np.array([20, 10, 1])  # a few frames before the hit keep the trials fast
 
 
@@ -367,15 +368,30 @@ def _exchangeable_hits(rng, n_train=40, n_test=60):
     return Hits(rows, features, np.zeros((n, 1, 39)), np.stack([pred - spread, pred + spread])), std
 
 
+@pytest.mark.parametrize(("n_cal", "n_bins"), [(10, 1), (35, 1), (36, 2), (41, 2), (54, 3), (300, 3)])
+def test_mondrian_speed_bins_follow_the_calibration_size(n_cal, n_bins, monkeypatch):
+    """As many speed bins as leave the mean cell twice the 9 hits a finite 90 % quantile needs, at most 3;
+    every cell's quantile finite at the default run's size."""
+    from pingpong.uncertainty import estimators as est
+
+    monkeypatch.setattr(sys.modules[__name__], "N_CAL_HITS", n_cal)
+    hits, _ = _exchangeable_hits(np.random.default_rng(5))
+    estimator = est.MondrianSpeed(SETTINGS)
+    estimator.fit(hits, {}, np.random.default_rng(0))
+    assert {len(e) + 1 for e in estimator.edges.values()} == {n_bins}
+    if n_cal == 41:  # the default run's: its cells hold ~20 hits, 9 lies 3.6 standard deviations below
+        assert np.isfinite(list(estimator.by_cell.values())).all()
+
+
 @pytest.mark.parametrize("name", ["conformal", "mondrian", "ensemble_time", "mondrian_speed",
                                   "normalised_ensemble", "normalised_hetero", "cqr_hetero", "clear"])
 def test_every_conformal_estimator_covers_within_the_finite_sample_bound(name):
     """The registered estimators themselves (the learned parts replaced by known values) over repeated
     calibration draws of the default run's size: per frame (pooled over frames for the two with one
     quantile for all frames), 1 - alpha <= E[coverage] <= 1 - alpha +
-    1/(n + 1), n the calibration hits of the estimator's quantile (half for CLEAR's scale; a third for the
-    speed terciles, whose cells hold ~14 calibration hits: the bound is taken at 10), widened by 4 standard
-    errors over the trials."""
+    1/(n + 1), n the calibration hits of the estimator's quantile (half for CLEAR's scale; for the speed
+    bins, halves at this size, whose cells hold ~20 calibration hits: the bound is taken at 15, two
+    binomial standard deviations below), widened by 4 standard errors over the trials."""
     from pingpong.uncertainty import estimators as est
 
     rng = np.random.default_rng(11)
@@ -390,7 +406,7 @@ def test_every_conformal_estimator_covers_within_the_finite_sample_bound(name):
         inside = (band.lower <= hits.y) & (hits.y <= band.upper)
         for f in coverage:
             coverage[f].append(inside[(hits.split == "test") & ((hits.frames == f) | (f == "all"))].mean())
-    n_cal = {"clear": N_CAL_HITS - N_CAL_HITS // 2, "mondrian_speed": 10}.get(name, N_CAL_HITS)
+    n_cal = {"clear": N_CAL_HITS - N_CAL_HITS // 2, "mondrian_speed": 15}.get(name, N_CAL_HITS)
     for f, share in coverage.items():
         share = np.array(share)
         low, high = coverage_bounds(n_cal, share, ALPHA)
