@@ -37,14 +37,23 @@ def _slope(t: np.ndarray, v: np.ndarray) -> float:
     return float(np.polyfit(t, v, 1)[0]) if len(t) >= 2 else np.nan
 
 
-def _across_gaps(t: np.ndarray, i: int, step: float) -> tuple[int, int]:
-    """(first, last): sample i's neighbours before and after where more than 1.5 steps (s) away, else i.
+MAX_HIDDEN_FRAMES = 3  # the longest gap a turn is looked for in: the ball behind the paddle at contact
 
-    A turn can lie in a gap (the ball hidden behind the paddle at contact): a fit from sample i across the
-    gap would straddle it, so the fits on that side start at the first sample beyond the gap instead.
+
+def _across_gaps(t: np.ndarray, i: int, step: float) -> tuple[int, int]:
+    """(first, last): sample i's neighbours before and after where 1 to MAX_HIDDEN_FRAMES samples (of
+    `step` s) are missing between them and i, else i.
+
+    A turn can lie in a short gap (the ball hidden behind the paddle at contact): a fit from sample i across
+    the gap would straddle it, so the fits on that side start at the first sample beyond the gap instead.
+    Not across longer gaps: after the last sample of a ball falling to the floor, the next one seen is the
+    next rally's (measured: 12 spurious bounces in the default run's four sessions when any gap was crossed).
     """
-    first = i - 1 if i > 0 and t[i] - t[i - 1] > 1.5 * step else i
-    last = i + 1 if i + 1 < len(t) and t[i + 1] - t[i] > 1.5 * step else i
+    def short_gap(dt):
+        return 1.5 * step < dt < (MAX_HIDDEN_FRAMES + 1.5) * step
+
+    first = i - 1 if i > 0 and short_gap(t[i] - t[i - 1]) else i
+    last = i + 1 if i + 1 < len(t) and short_gap(t[i + 1] - t[i]) else i
     return first, last
 
 
