@@ -2,11 +2,11 @@
 the filtering rule runs on the raw ball), and the unconfirmed samples dropped before.
 
 All detectors work on the finite samples only (a NaN row is a frame the ball was not seen), so NaN
-gaps neither create nor hide events; a turn inside a gap is found at the sample beside it, its slopes
-and meeting time fitted from beyond the gap (a bounce so hidden may still be lost: its nearest sample can
-lie above the height tolerance). Velocities are
-slopes of straight-line fits over `span` s either side of a sample, not sample differences, so that
-3 mm of triangulation noise (0.4 m/s on a 10 ms difference) cannot fake a turn.
+gaps neither create nor hide events; a turn inside a gap of up to MAX_HIDDEN_FRAMES unseen frames is found
+at the sample beside it, its slopes and meeting time fitted from beyond the gap (a bounce so hidden may
+still be lost: the samples beside it can lie above the height tolerance). Velocities are slopes of
+straight-line fits over `span` s either side of a sample, not sample differences, so that 3 mm of
+triangulation noise (0.4 m/s on a 10 ms difference) cannot fake a turn.
 """
 
 import numpy as np
@@ -17,6 +17,7 @@ from pingpong.curation.tracks import PLAYER_END, fill_short_gaps, frame_seconds,
 from pingpong.frames import BALL_RADIUS, GRAVITY, TABLE_HALF_LENGTH, TABLE_HALF_WIDTH
 
 TABLE_EXTENT = (-TABLE_HALF_WIDTH, TABLE_HALF_WIDTH, -TABLE_HALF_LENGTH, TABLE_HALF_LENGTH)  # x, x, y, y
+MAX_HIDDEN_FRAMES = 3  # the longest gap a turn is looked for in: the ball behind the paddle at contact
 
 
 def _finite(times, ball):
@@ -35,9 +36,6 @@ def _sampling_step(t: np.ndarray) -> float:
 def _slope(t: np.ndarray, v: np.ndarray) -> float:
     """Least-squares slope of v(t); NaN with fewer than 2 samples."""
     return float(np.polyfit(t, v, 1)[0]) if len(t) >= 2 else np.nan
-
-
-MAX_HIDDEN_FRAMES = 3  # the longest gap a turn is looked for in: the ball behind the paddle at contact
 
 
 def _across_gaps(t: np.ndarray, i: int, step: float) -> tuple[int, int]:
