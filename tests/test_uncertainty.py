@@ -3,7 +3,6 @@ exchangeable data, rank metrics against hand-computed cases, and the estimators 
 
 import json
 import math
-import sys
 
 import numpy as np
 import pandas as pd
@@ -349,15 +348,15 @@ N_CAL_HITS = 41  # the calibration hits of the default run (README; 76 when it h
 FRAMES_USED = np.array([20, 10, 1])  # a few frames before the hit keep the trials fast
 
 
-def _exchangeable_hits(rng, n_train=40, n_test=60):
+def _exchangeable_hits(rng, n_train=40, n_test=60, n_cal=N_CAL_HITS):
     """Training, calibration and test hits of one draw: residuals N(0, std) with a per-hit difficulty and
     a per-frame scale, the ensemble's spread a noisy guess of the std, the ball's speed random."""
-    n = n_train + N_CAL_HITS + n_test
+    n = n_train + n_cal + n_test
     k = len(FRAMES_USED)
     std = (rng.lognormal(0, 0.6, (n, 1)) * np.array([0.3, 0.2, 0.1])).ravel()
     pred = rng.normal(0, 0.3, n * k)
     y = pred + std * rng.standard_normal(n * k)
-    split = np.repeat(np.select([np.arange(n) < n_train, np.arange(n) < n_train + N_CAL_HITS],
+    split = np.repeat(np.select([np.arange(n) < n_train, np.arange(n) < n_train + n_cal],
                                 ["train", "calibration"], "test"), k)
     rows = pd.DataFrame({"split": split, "hit_index": np.repeat(np.arange(n), k),
                          "frames_before_hit": np.tile(FRAMES_USED, n), "strike_x": y, "strike_x_pred": pred,
@@ -369,13 +368,12 @@ def _exchangeable_hits(rng, n_train=40, n_test=60):
 
 
 @pytest.mark.parametrize(("n_cal", "n_bins"), [(10, 1), (35, 1), (36, 2), (41, 2), (54, 3), (300, 3)])
-def test_mondrian_speed_bins_follow_the_calibration_size(n_cal, n_bins, monkeypatch):
+def test_mondrian_speed_bins_follow_the_calibration_size(n_cal, n_bins):
     """As many speed bins as leave the mean cell twice the 9 hits a finite 90 % quantile needs, at most 3;
     every cell's quantile finite at the default run's size."""
     from pingpong.uncertainty import estimators as est
 
-    monkeypatch.setattr(sys.modules[__name__], "N_CAL_HITS", n_cal)
-    hits, _ = _exchangeable_hits(np.random.default_rng(5))
+    hits, _ = _exchangeable_hits(np.random.default_rng(5), n_cal=n_cal)
     estimator = est.MondrianSpeed(SETTINGS)
     estimator.fit(hits, {}, np.random.default_rng(0))
     assert {len(e) + 1 for e in estimator.edges.values()} == {n_bins}
