@@ -13,11 +13,11 @@ import pandas as pd
 import torch
 
 from pingpong.common.artifacts import read_table
-from pingpong.curation.schemas import DATASET, dataset_arrays
+from pingpong.curation.schemas import DATASET, HIT_KEYS, dataset_arrays
 from pingpong.learning.models import AnticipationNet, prediction_frames
 from pingpong.learning.schemas import PREDICTIONS
 from pingpong.reports.uncertainty import ORACLE_FRAMES
-from pingpong.reports.uncertainty_oracle import HIT_KEYS, join_test_hits, read_oracles
+from pingpong.reports.uncertainty_oracle import join_test_hits, read_oracles
 from pingpong.uncertainty.metrics import spearman, within_frames
 
 SETTINGS = ((16, 30), (32, 60), (64, 60))  # (GRU width, epochs)

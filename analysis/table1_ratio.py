@@ -11,8 +11,8 @@ import numpy as np
 from scipy.stats import bootstrap
 
 from pingpong.common.artifacts import read_table
+from pingpong.curation.schemas import HIT_KEYS
 from pingpong.learning.schemas import PREDICTIONS
-from pingpong.uncertainty.schemas import HIT_KEYS
 
 
 def median_ratio(late, early, axis=-1):

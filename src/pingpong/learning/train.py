@@ -12,6 +12,7 @@ torch.optim does (`adamw`), 1.5-2.3 s a process.
 import logging
 import math
 import time
+from contextlib import contextmanager
 
 import numpy as np
 import torch
@@ -48,6 +49,22 @@ class EarlyStopping:
         else:
             self.wait += 1
         return self.wait >= self.patience
+
+
+@contextmanager
+def _deterministic_on_cuda(dev: torch.device):
+    """torch.use_deterministic_algorithms on (warn only) while in the block on CUDA, then as it was; nothing
+    on the CPU (module docstring)."""
+    if dev.type != "cuda":
+        yield
+        return
+    prior = (torch.are_deterministic_algorithms_enabled(),
+             torch.is_deterministic_algorithms_warn_only_enabled())
+    torch.use_deterministic_algorithms(True, warn_only=True)
+    try:
+        yield
+    finally:
+        torch.use_deterministic_algorithms(prior[0], warn_only=prior[1])
 
 
 def resolve_device(device: str) -> torch.device:
@@ -135,43 +152,36 @@ def train(net: AnticipationNet, X_train, Y_train, X_val, Y_val, lr: float, *, ba
     shuffle = torch.Generator().manual_seed(seed)
     stopper = EarlyStopping(patience, min_delta)
     history, best_state = [], None
-    prior = (torch.are_deterministic_algorithms_enabled(),
-             torch.is_deterministic_algorithms_warn_only_enabled())
-    if dev.type == "cuda":
-        torch.use_deterministic_algorithms(True, warn_only=True)
-    try:
-        with torch.random.fork_rng(devices=[dev.index or 0] if dev.type == "cuda" else []):
-            torch.manual_seed(seed)
-            bar = tqdm(range(max_epochs), desc="train", unit="epoch", disable=not progress)
-            for epoch in bar:
-                start = time.perf_counter()
-                net.train()
-                total = torch.zeros((), device=dev)
-                batches = torch.randperm(len(X_dev), generator=shuffle).split(batch_size)
-                for idx in batches:
-                    idx = idx.to(dev)
-                    out = net(X_dev[idx], None if L_dev is None else L_dev[idx])
-                    loss = trajectory_loss(out, Y_dev[idx], mask_dev[idx], weights_dev)
-                    optimiser.zero_grad()
-                    loss.backward()
-                    optimiser.step()
-                    total += loss.detach()
-                train_loss = total.item() / len(batches)
-                val_loss = evaluate_loss(net, X_val, Y_val, lengths_val, batch_size)
-                if not (math.isfinite(train_loss) and math.isfinite(val_loss)):
-                    raise FloatingPointError(f"train: loss became train={train_loss}, val={val_loss} at "
-                                             f"epoch {epoch} (lr={lr}); try a lower learning rate")
-                stop = stopper.step(val_loss)
-                if stopper.best_epoch == epoch:
-                    best_state = {k: v.detach().cpu().clone() for k, v in net.state_dict().items()}
-                history.append(dict(epoch=epoch, train_loss=train_loss, val_loss=val_loss,
-                                    seconds=time.perf_counter() - start))
-                bar.set_postfix(train=f"{train_loss:.4f}", val=f"{val_loss:.4f}", best=stopper.best_epoch)
-                if stop:
-                    break
-    finally:
-        if dev.type == "cuda":
-            torch.use_deterministic_algorithms(prior[0], warn_only=prior[1])
+    cuda_devices = [dev.index or 0] if dev.type == "cuda" else []
+    with _deterministic_on_cuda(dev), torch.random.fork_rng(devices=cuda_devices):
+        torch.manual_seed(seed)
+        bar = tqdm(range(max_epochs), desc="train", unit="epoch", disable=not progress)
+        for epoch in bar:
+            start = time.perf_counter()
+            net.train()
+            total = torch.zeros((), device=dev)
+            batches = torch.randperm(len(X_dev), generator=shuffle).split(batch_size)
+            for idx in batches:
+                idx = idx.to(dev)
+                out = net(X_dev[idx], None if L_dev is None else L_dev[idx])
+                loss = trajectory_loss(out, Y_dev[idx], mask_dev[idx], weights_dev)
+                optimiser.zero_grad()
+                loss.backward()
+                optimiser.step()
+                total += loss.detach()
+            train_loss = total.item() / len(batches)
+            val_loss = evaluate_loss(net, X_val, Y_val, lengths_val, batch_size)
+            if not (math.isfinite(train_loss) and math.isfinite(val_loss)):
+                raise FloatingPointError(f"train: loss became train={train_loss}, val={val_loss} at "
+                                         f"epoch {epoch} (lr={lr}); try a lower learning rate")
+            stop = stopper.step(val_loss)
+            if stopper.best_epoch == epoch:
+                best_state = {k: v.detach().cpu().clone() for k, v in net.state_dict().items()}
+            history.append(dict(epoch=epoch, train_loss=train_loss, val_loss=val_loss,
+                                seconds=time.perf_counter() - start))
+            bar.set_postfix(train=f"{train_loss:.4f}", val=f"{val_loss:.4f}", best=stopper.best_epoch)
+            if stop:
+                break
     log.info("trained %d epochs; best val loss %.4f at epoch %d", len(history), stopper.best_loss,
              stopper.best_epoch)
     net.cpu().load_state_dict(best_state)

@@ -11,8 +11,8 @@ import numpy as np
 import pandas as pd
 from scipy.stats import binomtest
 
+from pingpong.curation.schemas import HIT_KEYS
 from pingpong.robot.controllers import CONTROLLERS
-from pingpong.robot.flights import HIT_KEYS
 from pingpong.robot.model import N_BASE, Robot
 
 REGIONS = ("left", "centre", "right", "all")

@@ -8,6 +8,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from pingpong.common.atomic import atomic_path  # noqa: E402
+from pingpong.curation.schemas import HIT_KEYS  # noqa: E402
 from pingpong.reports.uncertainty_oracle import as_uncertainty  # noqa: E402
 from pingpong.uncertainty.metrics import (  # noqa: E402
     FRACTIONS,
@@ -22,7 +23,6 @@ from pingpong.uncertainty.metrics import (  # noqa: E402
 )
 from pingpong.uncertainty.names import PAPER_ESTIMATORS  # noqa: E402
 from pingpong.uncertainty.path_band import PathBand, path_band_table  # noqa: E402
-from pingpong.uncertainty.schemas import HIT_KEYS  # noqa: E402
 
 SCATTER_ESTIMATORS = ("ensemble", "knn", "conformal", "cqr")  # the paper's three, and CQR beside them
 LAST_FRAME = 0  # the paper's figure 3a-c: predictions made at t = 0, the hit frame

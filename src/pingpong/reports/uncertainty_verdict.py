@@ -15,8 +15,8 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from pingpong.curation.schemas import HIT_KEYS
 from pingpong.reports.uncertainty import ORACLE_FRAMES
-from pingpong.uncertainty.schemas import HIT_KEYS
 
 ORACLE_BAR = 0.6
 COVERAGE_SLACK = 0.03  # "pooled coverage within 3 points"

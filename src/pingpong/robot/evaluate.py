@@ -12,6 +12,7 @@ import numpy as np
 import pandas as pd
 
 from pingpong.common.config import Settings
+from pingpong.curation.schemas import HIT_KEYS
 from pingpong.frames import REGION_EDGE_X
 from pingpong.robot.control import ControlParams
 from pingpong.robot.controllers import Controller
@@ -24,7 +25,7 @@ from pingpong.robot.episode import (
     run_episode,
     strike_crossing,
 )
-from pingpong.robot.flights import HIT_KEYS, HitFlight, prediction_series
+from pingpong.robot.flights import HitFlight, prediction_series
 from pingpong.robot.model import Robot
 from pingpong.robot.schemas import SIM
 

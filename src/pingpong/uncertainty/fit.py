@@ -3,7 +3,7 @@
 import numpy as np
 import pandas as pd
 
-from pingpong.curation.schemas import dataset_arrays
+from pingpong.curation.schemas import HIT_KEYS, dataset_arrays
 from pingpong.learning.models import FRAMES_BEFORE_HIT
 from pingpong.learning.train import predict, strike_points
 from pingpong.uncertainty import estimators as _registered  # noqa: F401  (fills the registry)
@@ -12,7 +12,6 @@ from pingpong.uncertainty.features import frame_features
 from pingpong.uncertainty.metrics import spearman, within_frames
 from pingpong.uncertainty.path_band import fit_path_band, fit_pointwise_band
 from pingpong.uncertainty.registry import REGISTRY, Estimator, Hits, UncertaintySettings
-from pingpong.uncertainty.schemas import HIT_KEYS
 
 TABLE_COLUMNS = [*HIT_KEYS, "split", "frames_before_hit", "strike_x", "strike_x_pred", "abs_error"]
 
