@@ -48,7 +48,7 @@ def twin_frames(rallies: int, width: int, height: int) -> tuple[list[CameraFrame
     camera = make_rig(rng_for(1, "rig"), 4, width, height)[0]
     rng = rng_for(1, "cam")
     lab = render.make_lab(rng_for(1, "lab"))
-    backgrounds = tuple(render.render_background(camera, lab, rng, intermittent=b) for b in (False, True))
+    backgrounds = render.render_backgrounds(camera, lab, rng)
     looks = render.make_player_looks(rng, 3)
     frames, rows = [], []
     for t, jpeg, row in record_camera(camera, backgrounds, looks, truth.ball, truth.people, truth.paddles,

@@ -9,10 +9,8 @@ job of the pipeline is such a process.
 """
 
 import argparse
-import statistics
-import subprocess
-import sys
-import time
+
+from timing import fresh_process_medians
 
 STEP = """
 import torch
@@ -31,24 +29,15 @@ SIDES = {
 }
 
 
-def run_once(code: str) -> float:
-    start = time.perf_counter()
-    subprocess.run([sys.executable, "-c", code], check=True)
-    return time.perf_counter() - start
-
-
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=5)
     a = ap.parse_args()
-    seconds = {name: [] for name in SIDES}
-    for _ in range(a.runs):  # alternated, so that the machine's drift falls on both sides alike
-        for name, code in SIDES.items():
-            seconds[name].append(run_once(code))
-    baseline, ours = (statistics.median(s) for s in seconds.values())
+    medians = fresh_process_medians(SIDES, a.runs)
+    baseline, ours = medians.values()
     print(f"| process (median of {a.runs}) | s |\n|---|---:|")
-    for name, s in seconds.items():
-        print(f"| {name} | {statistics.median(s):.2f} |")
+    for name, s in medians.items():
+        print(f"| {name} | {s:.2f} |")
     print(f"| speed-up | {baseline / ours:.2f}x |")
 
 

@@ -16,7 +16,7 @@ from pathlib import Path
 from pingpong.common.seeding import rng_for
 from pingpong.io.mcap_io import CameraStreamWriter
 from pingpong.twin.cameras import record_camera
-from pingpong.twin.render import encode_jpeg, make_lab, make_player_looks, render_background, render_frame
+from pingpong.twin.render import encode_jpeg, make_lab, make_player_looks, render_backgrounds, render_frame
 from pingpong.twin.rig import make_rig
 from pingpong.twin.session import FaultRates, simulate_session
 
@@ -32,7 +32,7 @@ def main():
     camera = make_rig(rng_for(1, "rig"), 4, a.width, a.height)[0]
     lab = make_lab(rng_for(1, "lab"))
     rng = rng_for(1, "cam")
-    backgrounds = tuple(render_background(camera, lab, rng, intermittent=b) for b in (False, True))
+    backgrounds = render_backgrounds(camera, lab, rng)
     looks = make_player_looks(rng, 3)
 
     # baseline: JPEG encoding of the same number of already-rendered frames

@@ -1,5 +1,8 @@
-"""Timing helper shared by the benchmark scripts (run as `python benchmarks/<name>.py`)."""
+"""Timing helpers shared by the benchmark scripts (run as `python benchmarks/<name>.py`)."""
 
+import statistics
+import subprocess
+import sys
 import time
 
 
@@ -11,3 +14,15 @@ def best_time(fn, repeats: int) -> tuple[float, object]:
         result = fn()
         times.append(time.perf_counter() - start)
     return min(times), result
+
+
+def fresh_process_medians(sides: dict[str, str], runs: int) -> dict[str, float]:
+    """Median wall time (s) of `python -c code` for each side's code, in fresh processes, the sides
+    alternated run by run so that the machine's drift falls on all of them alike."""
+    seconds = {name: [] for name in sides}
+    for _ in range(runs):
+        for name, code in sides.items():
+            start = time.perf_counter()
+            subprocess.run([sys.executable, "-c", code], check=True)
+            seconds[name].append(time.perf_counter() - start)
+    return {name: statistics.median(s) for name, s in seconds.items()}

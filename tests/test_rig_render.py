@@ -189,3 +189,22 @@ def test_opencv_calibration_on_the_rendered_images_recovers_the_camera(lab_scene
         ok, rvec, tvec = cv2.solvePnP(objects, corners, K_used, dist_used)
         R = cv2.Rodrigues(rvec)[0]
         assert ok and np.linalg.norm(-R.T @ tvec.ravel() - cam.center) < 0.01
+
+
+def test_both_backgrounds_at_once_are_those_of_two_calls():
+    """render_backgrounds casts the distractor's bands alone a second time: the same bits, the same draws."""
+    rng = np.random.default_rng(11)
+    cameras = make_rig(rng, 4, 320, 240)
+    lab = render.make_lab(rng)
+    seen = 0
+    for cam in cameras:
+        one, two = np.random.default_rng(3), np.random.default_rng(3)
+        together = render.render_backgrounds(cam, lab, one)
+        apart = [render.render_background(cam, lab, two, intermittent=b) for b in (False, True)]
+        for a, b in zip(together, apart, strict=True):
+            assert a.table_box == b.table_box
+            for name in ("image", "ray_map", "table_depth", "noise_up", "noise_down"):
+                assert np.array_equal(getattr(a, name), getattr(b, name)), name
+        assert one.integers(1 << 62) == two.integers(1 << 62)
+        seen += (together[0].image != together[1].image).any()
+    assert seen > 0  # some camera sees the distractor: its bands were cast again, the others reused

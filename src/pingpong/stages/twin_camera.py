@@ -11,7 +11,7 @@ from pingpong.common.seeding import rng_for
 from pingpong.io.mcap_io import CameraStreamWriter
 from pingpong.twin import truth
 from pingpong.twin.cameras import frame_times, record_camera
-from pingpong.twin.render import make_lab, make_player_looks, render_background
+from pingpong.twin.render import make_lab, make_player_looks, render_backgrounds
 
 
 def main(ctx):
@@ -20,7 +20,7 @@ def main(ctx):
     camera = Camera.from_dict(read_json(ctx.input.rig, truth.RIG)["cameras"][index])
     lab = make_lab(rng_for(p["seed"], "twin_lab"))
     rng = rng_for(p["seed"], "twin_camera", p["session"], p["cam"])
-    backgrounds = tuple(render_background(camera, lab, rng, intermittent=b) for b in (False, True))
+    backgrounds = render_backgrounds(camera, lab, rng)
     looks = make_player_looks(rng_for(p["seed"], "twin_looks", p["session"]), 3)
     people = read_table(ctx.input.people, truth.PEOPLE)
     frames = record_camera(camera, backgrounds, looks, read_table(ctx.input.ball, truth.BALL), people,

@@ -340,6 +340,53 @@ def _table_depth(camera: Camera, ray_map: np.ndarray) -> np.ndarray:
     return depth.reshape(camera.height, camera.width).astype(np.float32)
 
 
+BAND_ROWS = 64  # pixel rows ray cast at once: bounds the memory at high resolution
+
+
+def _cylinder_box(cyl: Cylinder) -> tuple[tuple, tuple]:
+    return (cyl.x - cyl.radius, cyl.y - cyl.radius, cyl.z0), (cyl.x + cyl.radius, cyl.y + cyl.radius, cyl.z1)
+
+
+def _lab_image(camera: Camera, lab: Lab, ray_map: np.ndarray, *, intermittent: bool, net: bool,
+               table_pattern: TableCharuco | None, ss: int, without: np.ndarray | None = None) -> np.ndarray:
+    """The empty lab (H, W, 3) uint8, ray cast band by band with ss x ss subsamples per pixel.
+
+    without: the same view without the distractor; with `intermittent`, the bands from which the
+    distractor's box is out of view are taken from it (a band is cast on its own rays alone, so such a
+    band is the same bit for bit) and only the others are cast.
+    """
+    h, w = camera.height, camera.width
+    image = np.empty((h, w, 3), np.uint8)
+    texture = None
+    if table_pattern is not None:  # the printed mat at 160 texels per square, white 255, ink 0
+        texture = table_pattern.board().generateImage(
+            (table_pattern.squares_x * 160, table_pattern.squares_y * 160), marginSize=0,
+            borderBits=1).astype(np.float32)
+    for y0 in range(0, h, BAND_ROWS):
+        rows = min(BAND_ROWS, h - y0)
+        normalised = subpixel_rays(ray_map, 0, y0, w, rows, ss).reshape(-1, 2)
+        if without is not None and intermittent \
+                and not len(_in_view(camera, normalised, *_cylinder_box(lab.intermittent))):
+            image[y0:y0 + rows] = without[y0:y0 + rows]
+            continue
+        colour = _cast(camera, normalised, lab, intermittent, net, table_pattern, texture)
+        colour = colour.reshape(rows * ss, w * ss, 3).astype(np.float32)
+        image[y0:y0 + rows] = np.clip(average_subsamples(colour, ss) + 0.5, 0, 255).astype(np.uint8)
+    return image
+
+
+def _background(image: np.ndarray, ray_map: np.ndarray, table_depth: np.ndarray, rng: np.random.Generator,
+                noise_sigma: float) -> Background:
+    """The Background of a lab image, with its bank of sensor noise drawn from rng."""
+    noise_bytes = np.frombuffer(rng.bytes(2 * image.size), np.uint8)
+    up, down = _noise_tables(noise_sigma)
+    ys, xs = np.nonzero(np.isfinite(table_depth))
+    table_box = (int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1,
+                 float(table_depth[ys, xs].min())) if len(xs) else (0, 0, 0, 0, np.inf)
+    return Background(image, ray_map, table_depth, table_box, cv2.LUT(noise_bytes, up).ravel(),
+                      cv2.LUT(noise_bytes, down).ravel())
+
+
 def render_background(camera: Camera, lab: Lab, rng: np.random.Generator, *, intermittent: bool = False,
                       net: bool = True, table_pattern: TableCharuco | None = None, ss: int = 2,
                       ray_map: np.ndarray | None = None, noise_sigma: float = 2.0) -> Background:
@@ -349,27 +396,23 @@ def render_background(camera: Camera, lab: Lab, rng: np.random.Generator, *, int
     (std `noise_sigma`, DN) that frames rendered over this background get.
     """
     ray_map = pixel_ray_map(camera) if ray_map is None else ray_map
-    h, w = camera.height, camera.width
-    colour = np.empty((h * ss, w * ss, 3), np.float32)
-    texture = None
-    if table_pattern is not None:  # the printed mat at 160 texels per square, white 255, ink 0
-        texture = table_pattern.board().generateImage(
-            (table_pattern.squares_x * 160, table_pattern.squares_y * 160), marginSize=0,
-            borderBits=1).astype(np.float32)
-    for y0 in range(0, h, 64):  # bands bound the memory at high resolution
-        rows = min(64, h - y0)
-        normalised = subpixel_rays(ray_map, 0, y0, w, rows, ss).reshape(-1, 2)
-        colour[y0 * ss:(y0 + rows) * ss] = _cast(camera, normalised, lab, intermittent, net, table_pattern,
-                                                 texture).reshape(rows * ss, w * ss, 3)
-    image = np.clip(average_subsamples(colour, ss) + 0.5, 0, 255).astype(np.uint8)
-    noise_bytes = np.frombuffer(rng.bytes(2 * image.size), np.uint8)
-    up, down = _noise_tables(noise_sigma)
+    image = _lab_image(camera, lab, ray_map, intermittent=intermittent, net=net, table_pattern=table_pattern,
+                       ss=ss)
+    return _background(image, ray_map, _table_depth(camera, ray_map), rng, noise_sigma)
+
+
+def render_backgrounds(camera: Camera, lab: Lab, rng: np.random.Generator,
+                       noise_sigma: float = 2.0) -> tuple[Background, Background]:
+    """The lab without and with the distractor: what two calls of render_background give (the same
+    bits and draws of rng), with one ray map and table depth, and only the bands in which the
+    distractor can show cast twice (a camera that never sees it casts the lab once)."""
+    ray_map = pixel_ray_map(camera)
     table_depth = _table_depth(camera, ray_map)
-    ys, xs = np.nonzero(np.isfinite(table_depth))
-    table_box = (int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1,
-                 float(table_depth[ys, xs].min())) if len(xs) else (0, 0, 0, 0, np.inf)
-    return Background(image, ray_map, table_depth, table_box, cv2.LUT(noise_bytes, up).ravel(),
-                      cv2.LUT(noise_bytes, down).ravel())
+    plain = _lab_image(camera, lab, ray_map, intermittent=False, net=True, table_pattern=None, ss=2)
+    with_distractor = _lab_image(camera, lab, ray_map, intermittent=True, net=True, table_pattern=None, ss=2,
+                                 without=plain)
+    return tuple(_background(image, ray_map, table_depth, rng, noise_sigma)  # in this order: rng's draws
+                 for image in (plain, with_distractor))
 
 
 # ---------------------------------------------------------------------------------- moving things
