@@ -30,8 +30,9 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
-from typing import TYPE_CHECKING, Protocol
+from typing import Protocol
 
+import av
 import cv2
 import numpy as np
 import pandas as pd
@@ -42,9 +43,6 @@ from mcap_ros2.decoder import DecoderFactory
 from pingpong.io import mcap_io
 from pingpong.io.jpeg import REDUCED_FLAGS, decode_jpeg
 from pingpong.io.mcap_io import McapDamagedError
-
-if TYPE_CHECKING:
-    import av
 
 log = logging.getLogger(__name__)
 
@@ -160,14 +158,13 @@ class VideoFrame:
     gave no image."""
 
     time_ns: int
-    frame: "av.VideoFrame | None"
+    frame: av.VideoFrame | None
     reason: str = ""
 
     def decode(self, reduction: int = 1) -> tuple[np.ndarray | None, str]:
         _check_reduction(reduction)
         if self.frame is None:
             return None, self.reason
-        import av
         try:
             image = self.frame.to_ndarray(format="bgr24")
         except (av.FFmpegError, ValueError) as err:  # a pixel format FFmpeg cannot convert
@@ -316,7 +313,6 @@ def _ros2_times(path: Path, source: _Source, strict: bool) -> np.ndarray:
 
 def _video_packets(path: Path, strict: bool) -> tuple[list[int], Fraction]:
     """(sorted pts of the first video stream's packets, its time_base), demuxed without decoding."""
-    import av  # here, not at the top: PyAV's import costs 0.5 s in every job, and the twin records MCAP
     try:
         with av.open(str(path)) as container:
             if not container.streams.video:
@@ -391,7 +387,6 @@ def _video_times(path: Path, strict: bool, timestamps, start_ns: int) -> np.ndar
 def _video_frames(path: Path, times: np.ndarray, strict: bool) -> Iterator[Frame]:
     """Decoded frames, the k-th given the k-th time: decoders give frames in presentation order, while a
     frame's own pts can be wrong (AVI stores decode-order stamps alone, so B-frames get shuffled ones)."""
-    import av
     index = 0
     with av.open(str(path)) as container:
         packets = container.demux(container.streams.video[0])
