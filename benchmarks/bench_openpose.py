@@ -1,8 +1,11 @@
-"""The twin's OpenPose simulation over many frames at once against one frame at a time, in one run.
+"""The twin's OpenPose simulation over many frames at once against one frame at a time, in one run; and
+its occlusion test against the one before 7cd0a29.
 
 Both sides simulate the same frames of one session's people for one camera: the baseline calls
 `simulate_openpose` per frame (the per-frame loop `twin_openpose` ran before f461718), the other
-`simulate_openpose_frames` on chunks of frames as the rule does now.
+`simulate_openpose_frames` on chunks of frames as the rule does now. The occlusion test (`_occluded`,
+x and y apart) runs beside the one it replaced (squared offsets summed over a last axis of 2) on the
+same projected joints; the results must be identical.
 
     PYTHONPATH=src python benchmarks/bench_openpose.py [--rallies 4] [--chunk 2000]
 """
@@ -14,9 +17,40 @@ from timing import best_time
 
 from pingpong.common.seeding import rng_for
 from pingpong.twin import truth as twin_truth
-from pingpong.twin.openpose_sim import simulate_openpose, simulate_openpose_frames
+from pingpong.twin.openpose_sim import OCCLUDER_RADIUS, _occluded, simulate_openpose, simulate_openpose_frames
 from pingpong.twin.rig import make_rig
 from pingpong.twin.session import FaultRates, simulate_session
+
+
+def occluded_summed(px: np.ndarray, depth: np.ndarray, f: float) -> np.ndarray:
+    """The baseline: _occluded before 7cd0a29."""
+    hidden = np.zeros(depth.shape, bool)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        width2 = (f * OCCLUDER_RADIUS / depth) ** 2
+        for i in range(len(px)):
+            for k in range(len(px)):
+                if k != i:
+                    dist2 = ((px[i][:, :, None] - px[k][:, None]) ** 2).sum(axis=-1)
+                    covers = (dist2 < width2[k][:, None]) & (depth[k][:, None] < depth[i][:, :, None]) \
+                        & (depth[k][:, None] > 0.1)
+                    hidden[i] |= covers.any(axis=2)
+    return hidden
+
+
+def compare_occlusion(camera, bodies: np.ndarray) -> None:
+    n_people, n = bodies.shape[:2]
+    flat = np.nan_to_num(bodies).reshape(-1, 3)
+    px = camera.project(flat).reshape(n_people, n, 25, 2)
+    depth = camera.depth(flat).reshape(n_people, n, 25)
+    absent = np.isnan(bodies).all(axis=(-1, -2))
+    px[absent], depth[absent] = np.nan, np.nan
+    summed_s, before = best_time(lambda: occluded_summed(px, depth, camera.K[0, 0]), 3)
+    apart_s, now = best_time(lambda: _occluded(px, depth, camera.K[0, 0]), 3)
+    assert np.array_equal(before, now), "the two occlusion tests disagree"
+    print(f"\n| occlusion test, {n_people} people x {n} frames | s |\n|---|---:|")
+    print(f"| offsets squared and summed over the last axis (before 7cd0a29) | {summed_s:.3f} |")
+    print(f"| x and y apart (now) | {apart_s:.3f} |")
+    print(f"| speed-up | {summed_s / apart_s:.1f}x |")
 
 
 def main():
@@ -47,6 +81,7 @@ def main():
     print(f"| one frame at a time | {n / per_frame_s:.0f} |")
     print(f"| {a.chunk} frames at once | {n / chunked_s:.0f} |")
     print(f"| speed-up | {per_frame_s / chunked_s:.1f}x |")
+    compare_occlusion(camera, bodies)
 
 
 if __name__ == "__main__":
