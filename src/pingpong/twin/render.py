@@ -277,6 +277,11 @@ def _in_view(camera: Camera, normalised: np.ndarray, lo, hi) -> np.ndarray:
     return np.flatnonzero(inside)
 
 
+def _cylinder_box(cyl: Cylinder) -> tuple[tuple, tuple]:
+    """Corners (lo, hi) of a cylinder's bounding box, for _in_view."""
+    return (cyl.x - cyl.radius, cyl.y - cyl.radius, cyl.z0), (cyl.x + cyl.radius, cyl.y + cyl.radius, cyl.z1)
+
+
 def _cast(camera: Camera, normalised: np.ndarray, lab: Lab, intermittent: bool, net: bool,
           pattern: TableCharuco | None, texture: np.ndarray | None) -> np.ndarray:
     """Colour (N, 3) of the empty lab along the rays of normalised coordinates (N, 2)."""
@@ -294,8 +299,7 @@ def _cast(camera: Camera, normalised: np.ndarray, lab: Lab, intermittent: bool, 
         s, axis = _hit_box(o, d[idx], box.lo, box.hi)
         paint(idx, s, hsv_to_bgr(*box.hsv)[None, :] * np.where(axis == 2, 1.0, 0.75)[:, None])
     for cyl in lab.cylinders + ((lab.intermittent,) if intermittent else ()):
-        idx = _in_view(camera, normalised, (cyl.x - cyl.radius, cyl.y - cyl.radius, cyl.z0),
-                       (cyl.x + cyl.radius, cyl.y + cyl.radius, cyl.z1))
+        idx = _in_view(camera, normalised, *_cylinder_box(cyl))
         s, top = _hit_cylinder(o, d[idx], cyl)
         paint(idx, s, hsv_to_bgr(*cyl.hsv)[None, :] * np.where(top, 1.0, 0.8)[:, None])
     lo, hi = TABLE_SLAB
@@ -341,10 +345,6 @@ def _table_depth(camera: Camera, ray_map: np.ndarray) -> np.ndarray:
 
 
 BAND_ROWS = 64  # pixel rows ray cast at once: bounds the memory at high resolution
-
-
-def _cylinder_box(cyl: Cylinder) -> tuple[tuple, tuple]:
-    return (cyl.x - cyl.radius, cyl.y - cyl.radius, cyl.z0), (cyl.x + cyl.radius, cyl.y + cyl.radius, cyl.z1)
 
 
 def _lab_image(camera: Camera, lab: Lab, ray_map: np.ndarray, *, intermittent: bool, net: bool,
