@@ -17,7 +17,13 @@ from timing import best_time
 
 from pingpong.common.seeding import rng_for
 from pingpong.twin import truth as twin_truth
-from pingpong.twin.openpose_sim import OCCLUDER_RADIUS, _occluded, simulate_openpose, simulate_openpose_frames
+from pingpong.twin.openpose_sim import (
+    OCCLUDER_RADIUS,
+    _occluded,
+    projected_people,
+    simulate_openpose,
+    simulate_openpose_frames,
+)
 from pingpong.twin.rig import make_rig
 from pingpong.twin.session import FaultRates, simulate_session
 
@@ -39,11 +45,7 @@ def occluded_summed(px: np.ndarray, depth: np.ndarray, f: float) -> np.ndarray:
 
 def compare_occlusion(camera, bodies: np.ndarray) -> None:
     n_people, n = bodies.shape[:2]
-    flat = np.nan_to_num(bodies).reshape(-1, 3)
-    px = camera.project(flat).reshape(n_people, n, 25, 2)
-    depth = camera.depth(flat).reshape(n_people, n, 25)
-    absent = np.isnan(bodies).all(axis=(-1, -2))
-    px[absent], depth[absent] = np.nan, np.nan
+    _, px, depth = projected_people(camera, bodies)
     summed_s, before = best_time(lambda: occluded_summed(px, depth, camera.K[0, 0]), 3)
     apart_s, now = best_time(lambda: _occluded(px, depth, camera.K[0, 0]), 3)
     assert np.array_equal(before, now), "the two occlusion tests disagree"

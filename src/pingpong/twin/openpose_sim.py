@@ -40,6 +40,18 @@ def _occluded(px: np.ndarray, depth: np.ndarray, f: float) -> np.ndarray:
     return hidden
 
 
+def projected_people(camera: Camera, joints: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(present (P, n), pixels (P, n, 25, 2), camera depths (P, n, 25)) of true joints (P, n, 25, 3); a
+    person whose joints are all NaN in a frame is absent there, and their pixels and depths are NaN."""
+    n_people, n = joints.shape[:2]
+    present = ~np.isnan(joints).all(axis=-1).all(axis=-1)
+    flat = np.where(present[..., None, None], joints, 0.0).reshape(-1, 3)
+    px = camera.project(flat).reshape(n_people, n, 25, 2)
+    depth = camera.depth(flat).reshape(n_people, n, 25)
+    px[~present], depth[~present] = np.nan, np.nan
+    return present, px, depth
+
+
 def simulate_openpose_frames(camera: Camera, people_joints: np.ndarray, rng: np.random.Generator,
                              swap_rate: float = 0.01) -> list[np.ndarray]:
     """OpenPose's people (p, 25, 3) [x px, y px, confidence] for each of n frames; absent joints are 0, 0, 0.
@@ -49,12 +61,7 @@ def simulate_openpose_frames(camera: Camera, people_joints: np.ndarray, rng: np.
     the work is a few dozen tiny array operations).
     """
     joints = np.asarray(people_joints, float)
-    n_people, n = joints.shape[:2]
-    present = ~np.isnan(joints).all(axis=-1).all(axis=-1)  # (P, n)
-    flat = np.where(present[..., None, None], joints, 0.0).reshape(-1, 3)
-    px = camera.project(flat).reshape(n_people, n, 25, 2)
-    depth = camera.depth(flat).reshape(n_people, n, 25)
-    px[~present], depth[~present] = np.nan, np.nan
+    present, px, depth = projected_people(camera, joints)
     hidden = _occluded(px, depth, camera.K[0, 0])
     with np.errstate(invalid="ignore"):
         inside = (depth > 0.1) & (px[..., 0] >= 0) & (px[..., 0] < camera.width) & (px[..., 1] >= 0) \
