@@ -142,7 +142,7 @@ class JpegFrame:
 
 def stray_marker(data: bytes, fraction: float) -> bytes:
     """`data` with the 0x00 that stuffs a 0xFF data byte, `fraction` of the way into the frame, turned into
-    0xD3: a restart marker in a scan that has none, which libjpeg repairs and complains of."""
+    0xD3: a restart marker out of sequence, which libjpeg repairs and complains of."""
     start = data.index(b"\xff\xda")
     return data[:(i := data.index(b"\xff\x00", start + int(fraction * (len(data) - start))) + 1)] + b"\xd3" \
         + data[i + 1:]
@@ -180,6 +180,39 @@ def test_at_480x360_every_frame_is_searched_at_full_resolution_as_before(twin_st
         rows.append(ball or (np.nan, np.nan, 0))
     np.testing.assert_array_equal(found[["u", "v", "area_px"]].to_numpy(), np.array(rows, np.float64))
     pd.testing.assert_frame_equal(detect_stream(frames, BallDetector(), reduction=1), found)
+
+
+@dataclass
+class CountingFrame:
+    """A CameraFrame that notes each decode: 'whole', or the number of rows asked of decode_rows."""
+
+    frame: CameraFrame
+    calls: list
+
+    @property
+    def time_ns(self):
+        return self.frame.time_ns
+
+    def decode(self, reduction: int = 1):
+        self.calls.append("whole")
+        return self.frame.decode(reduction)
+
+    def decode_rows(self, first_row: int, end_row: int):
+        self.calls.append(end_row - first_row)
+        return self.frame.decode_rows(first_row, end_row)
+
+
+def test_a_tracked_ball_is_searched_on_its_window_rows_alone(twin_stream, scored):
+    frames, _ = twin_stream
+    found, _, _ = scored
+    calls = []
+    out = detect_stream([CountingFrame(f, calls) for f in frames], BallDetector())
+    pd.testing.assert_frame_equal(out, found)  # and so as the whole images (the test above)
+    tracked = int(found["detected"].to_numpy()[:-1].sum())  # frames after one with the ball
+    window = 2 * BallDetector().scaled(WIDTH)[2] + 1
+    assert calls.count("whole") == 1 + len(frames) - tracked  # the first frame's size, then no ball
+    assert [c for c in calls if c != "whole"] and all(c <= window for c in calls if c != "whole")
+    assert len(calls) == len(frames) + 1
 
 
 @pytest.mark.parametrize(("width", "reduction"), [(480, 1), (640, 1), (1439, 1), (1440, 2), (1920, 2),

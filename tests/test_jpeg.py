@@ -5,8 +5,10 @@ import os
 import cv2
 import numpy as np
 import pytest
+from hypothesis import assume, given
+from hypothesis import strategies as st
 
-from pingpong.io.jpeg import decode_jpeg
+from pingpong.io.jpeg import RST, decode_jpeg, decode_jpeg_rows
 from pingpong.twin import render
 
 WIDTH, HEIGHT = 1440, 1080
@@ -29,8 +31,9 @@ def entropy_start(data: bytes) -> int:
 
 def stray_marker(data: bytes, fraction: float) -> bytes:
     """`data` with one byte corrupted `fraction` of the way into the entropy-coded data: the 0x00 that
-    stuffs a 0xFF data byte turned into 0xD3, a restart marker in a scan that has none. A flipped byte
-    elsewhere may draw no complaint (pingpong.io.jpeg's docstring); this one always does."""
+    stuffs a 0xFF data byte turned into 0xD3, a restart marker out of sequence (the twin's frames have one
+    per MCU row, D0..D7 in turn). A flipped byte elsewhere may draw no complaint (pingpong.io.jpeg's
+    docstring); this one always does."""
     start = entropy_start(data)
     i = data.index(b"\xff\x00", start + int(fraction * (len(data) - start))) + 1
     return data[:i] + b"\xd3" + data[i + 1:]
@@ -101,3 +104,44 @@ def test_the_decoders_complaint_does_not_leak_to_fd_2_and_fd_2_is_restored(clean
     os.write(2, b"written on fd 2 after the decodes\n")
     out, err = capfd.readouterr()
     assert err == "written on fd 2 after the decodes\n" and out == ""
+
+
+@given(first=st.integers(-50, HEIGHT - 1), length=st.integers(1, 400))
+def test_a_band_of_rows_decodes_as_those_rows_of_the_whole_image(clean, first, length):
+    assume(first + length > 0)  # rows in the image
+    whole, _ = decode_jpeg(clean)
+    band, reason = decode_jpeg_rows(clean, first, first + length)
+    lo, hi = max(first, 0), min(first + length, HEIGHT)
+    assert reason == "" and band.shape == whole.shape
+    np.testing.assert_array_equal(band[lo:hi], whole[lo:hi])
+    decoded = np.flatnonzero(band.any(axis=(1, 2)))  # whole MCU rows (8 px at 4:4:4) around them, no more
+    assert decoded.min() >= lo // 8 * 8 and decoded.max() < -(-hi // 8) * 8
+
+
+def test_the_twin_writes_a_restart_marker_per_mcu_row(clean):
+    assert len(RST.findall(clean)) == HEIGHT // 8 - 1
+
+
+def without_restart_markers(image: np.ndarray, chroma=cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444) -> bytes:
+    return cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, 90, cv2.IMWRITE_JPEG_SAMPLING_FACTOR,
+                                        chroma])[1].tobytes()
+
+
+def test_restart_markers_change_no_pixel(clean):
+    whole, _ = decode_jpeg(clean)
+    np.testing.assert_array_equal(decode_jpeg(without_restart_markers(whole))[0],
+                                  decode_jpeg(render.encode_jpeg(whole))[0])
+
+
+@pytest.mark.parametrize("case", ["no restart markers", "4:2:0 chroma", "a restart marker missing",
+                                  "a stray restart marker"])
+def test_a_jpeg_without_a_restart_marker_per_row_decodes_whole_and_damage_still_tells(clean, case):
+    whole, _ = decode_jpeg(clean)
+    data = {"no restart markers": lambda: without_restart_markers(whole),
+            "4:2:0 chroma": lambda: render.encode_jpeg(whole, chroma="420"),
+            "a restart marker missing": lambda: clean.replace(b"\xff\xd3", b"", 1),
+            "a stray restart marker": lambda: stray_marker(clean, 0.9)}[case]()
+    image, reason = decode_jpeg_rows(data, 0, 8)
+    assert (image, reason)[1] == decode_jpeg(data)[1]
+    np.testing.assert_array_equal(image, decode_jpeg(data)[0])
+    assert ("Corrupt JPEG data" in reason) == case.startswith("a ")

@@ -4,7 +4,8 @@ A stream is an iterator of frames in time order, each a `Frame` (CameraFrame, Ra
 the frame's time on the camera clock (ns) and a `decode(reduction)` that gives the BGR image (uint8,
 H x W x 3), at 1/reduction of the full size when asked (reduction 1, 2, 4 or 8), or None with the reason
 when the frame does not decode. JPEG shrinks inside the decoder; other images are decoded whole and
-shrunk with INTER_AREA to (w // r, h // r).
+shrunk with INTER_AREA to (w // r, h // r). A CameraFrame also has `decode_rows(first, end)`: the image
+with only those rows sure to be decoded, which a JPEG with restart markers per MCU row does alone.
 
 Formats, detected from the file's content (never its name) and logged with the file:
 - `foxglove_mcap`: MCAP with a protobuf `foxglove.CompressedImage` (JPEG) channel, what the twin writes;
@@ -41,7 +42,7 @@ from mcap.well_known import SchemaEncoding
 from mcap_ros2.decoder import DecoderFactory
 
 from pingpong.io import mcap_io
-from pingpong.io.jpeg import REDUCED_FLAGS, decode_jpeg
+from pingpong.io.jpeg import REDUCED_FLAGS, decode_jpeg, decode_jpeg_rows
 from pingpong.io.mcap_io import McapDamagedError
 
 log = logging.getLogger(__name__)
@@ -114,6 +115,11 @@ class CameraFrame:
         """(BGR image at 1/reduction of the full size, or None; '' or why it did not decode cleanly)."""
         _check_reduction(reduction)
         return COMPRESSED_DECODERS[self.encoding](self.data, reduction)
+
+    def decode_rows(self, first_row: int, end_row: int) -> tuple[np.ndarray | None, str]:
+        """decode(1) with only the rows [first_row, end_row) sure to be decoded: a JPEG with a restart
+        marker per MCU row decodes just the MCU rows holding them (pingpong.io.jpeg.decode_jpeg_rows)."""
+        return decode_jpeg_rows(self.data, first_row, end_row) if self.encoding == "jpeg" else self.decode(1)
 
 
 @dataclass(frozen=True)

@@ -161,21 +161,27 @@ def _weighted_centre(hsv: np.ndarray, x: int, y: int, blob: np.ndarray) -> tuple
             y0 + weights.sum(axis=1) @ np.arange(weights.shape[0]) / total)
 
 
+def _window(shape: tuple, detector: BallDetector, previous_uv) -> tuple[int, int, int, int]:
+    """Pixel bounds x0, y0, x1, y1 (exclusive) searched in an image of `shape` (height, width, ...): the
+    window around previous_uv, or the whole image where there is none."""
+    height, width = shape[:2]
+    if previous_uv is None:
+        return 0, 0, width, height
+    half = detector.scaled(width)[2]
+    cu = min(max(int(round(previous_uv[0])), 0), width - 1)
+    cv = min(max(int(round(previous_uv[1])), 0), height - 1)
+    return max(cu - half, 0), max(cv - half, 0), cu + half + 1, cv + half + 1
+
+
 def detect_ball(image_bgr: np.ndarray, detector: BallDetector,
                 previous_uv: tuple[float, float] | None = None) -> tuple[float, float, int] | None:
     """(u, v, area_px) of the ball in a BGR image, or None; searches around previous_uv when given.
 
     u, v: pixel coordinates (OpenCV: pixel centres at integers); area_px: the thresholded blob's size.
     """
-    height, width = image_bgr.shape[:2]
-    min_area, max_area, half = detector.scaled(width)
-    x0, y0 = 0, 0
-    window = image_bgr
-    if previous_uv is not None:
-        cu = min(max(int(round(previous_uv[0])), 0), width - 1)
-        cv = min(max(int(round(previous_uv[1])), 0), height - 1)
-        x0, y0 = max(cu - half, 0), max(cv - half, 0)
-        window = image_bgr[y0:cv + half + 1, x0:cu + half + 1]
+    min_area, max_area, _ = detector.scaled(image_bgr.shape[1])
+    x0, y0, x1, y1 = _window(image_bgr.shape, detector, previous_uv)
+    window = image_bgr[y0:y1, x0:x1]
     hsv = cv2.cvtColor(window, cv2.COLOR_BGR2HSV)
     mask = cv2.inRange(hsv, (detector.hue_min, detector.saturation_min, detector.value_min),
                        (detector.hue_max, 255, 255))
@@ -193,9 +199,13 @@ def stream_reduction(width: int) -> int:
     return next((r for r in (8, 4, 2) if width / r >= DECODE_WIDTH_PX), 1)
 
 
-def _decoded(frame, reduction: int) -> tuple[np.ndarray | None, str]:
-    """(image at 1/reduction, '') or (None or the damaged image, the decoder's complaint)."""
-    image, reason = frame.decode(reduction)
+def _decoded(frame, reduction: int, rows: tuple[int, int] | None = None) -> tuple[np.ndarray | None, str]:
+    """(image at 1/reduction, '') or (None or the damaged image, the decoder's complaint). rows: at
+    full resolution, only these [first, end) are needed, where the frame can decode them alone."""
+    if rows is not None and reduction == 1 and hasattr(frame, "decode_rows"):
+        image, reason = frame.decode_rows(*rows)
+    else:
+        image, reason = frame.decode(reduction)
     return image, reason or ("" if image is not None else "no image")
 
 
@@ -240,12 +250,15 @@ def _candidates(detector: BallDetector) -> BallDetector:
     return replace(detector, min_area_px=detector.min_area_px * CANDIDATE_AREA)
 
 
-def _detect_frame(frame, detector: BallDetector, previous, level: int, reduction: int):
+def _detect_frame(frame, detector: BallDetector, previous, level: int, reduction: int, shape):
     """(ball or None, the decoder's complaint, the reduction the ball was found at) of one frame: around
     `previous` at 1/level when there is one, else everywhere at 1/reduction. Where a reduced image shows
-    no ball near the previous one, or a blob below the minimum area, the full-resolution image decides."""
+    no ball near the previous one, or a blob below the minimum area, the full-resolution image decides.
+    shape: the stream's full-resolution image shape, whose window rows alone are decoded where the
+    frame can (CameraFrame.decode_rows); None decodes whole images."""
     scale = reduction if previous is None else level
-    image, reason = _decoded(frame, scale)
+    rows = None if shape is None or previous is None else _window(shape, detector, previous)[1::2]
+    image, reason = _decoded(frame, scale, rows)
     if reason:
         return None, reason, scale
     found = _ball_at(image, scale, detector, previous)
@@ -264,17 +277,21 @@ def detect_stream(frames: Iterable, detector: BallDetector, reduction: int | Non
     frames: anything with `.time_ns` and `.decode(reduction) -> (BGR image or None, complaint or '')`
     (pingpong.io.camera_streams.Frame: JPEG, raw and video streams alike). reduction: the decoder's, from
     the first image's width (`stream_reduction`) unless given; 1 searches every frame at full resolution.
-    Each frame is searched around the previous frame's detection, the whole frame when there was none.
+    Each frame is searched around the previous frame's detection, the whole frame when there was none;
+    a frame searched in a window at full resolution decodes only the window's rows where it can
+    (CameraFrame.decode_rows: JPEG with a restart marker per MCU row, as the twin writes).
     A frame whose decode complains (damaged, or no image) is logged, marked decode_ok=False and not
     searched, even where the decoder made an image of it; tracking restarts.
     """
     times, us, vs, areas, decoded = [], [], [], [], []
     previous, level = None, 1  # the last detection (full-resolution px) and the reduction it was found at
+    shape = None  # the first image that decodes sets the stream's image shape and reduction
     for frame in frames:
-        if reduction is None:  # the first image that decodes sets the stream's reduction
+        if shape is None:
             image, _ = frame.decode(1)
-            reduction = None if image is None else stream_reduction(image.shape[1])
-        found, reason, level = _detect_frame(frame, detector, previous, level, reduction or 1)
+            shape = None if image is None else image.shape
+            reduction = reduction or (None if image is None else stream_reduction(image.shape[1]))
+        found, reason, level = _detect_frame(frame, detector, previous, level, reduction or 1, shape)
         if reason:
             log.warning("frame at %d ns: %s; skipped", frame.time_ns, reason)
         previous = found[:2] if found is not None else None

@@ -781,9 +781,14 @@ def encode_jpeg(image: np.ndarray, quality: int = 90, chroma: str = "444") -> by
     chroma: subsampling "444", "422" or "420". Full-resolution chroma (the machine-vision
     cameras' option) is the default: at 480x360 the ball is ~3-4 px across, and 4:2:0 averages
     its colour over 2x2 blocks until only 1-3 pixels stay saturated enough to be told from skin.
+    A restart marker ends every row of MCUs (cjpeg's `-restart 1`), so that a reader can decode the
+    rows around a tracked ball alone (pingpong.io.jpeg.decode_jpeg_rows); the pixels are those
+    without markers, the file ~0.4 % larger (36,211 -> 36,365 bytes, a 480x360 twin frame).
     """
+    mcu_width = 8 if chroma == "444" else 16
     ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, int(quality),
-                                           cv2.IMWRITE_JPEG_SAMPLING_FACTOR, JPEG_CHROMA[chroma]])
+                                           cv2.IMWRITE_JPEG_SAMPLING_FACTOR, JPEG_CHROMA[chroma],
+                                           cv2.IMWRITE_JPEG_RST_INTERVAL, -(-image.shape[1] // mcu_width)])
     if not ok:
         raise RuntimeError("cv2.imencode failed to encode a JPEG frame")
     return buf.tobytes()
