@@ -8,6 +8,7 @@ Either way `main(ctx)` gets plain paths and params, and its log goes to the rule
 
 import argparse
 import contextlib
+import gc
 import importlib
 import json
 import logging
@@ -112,6 +113,10 @@ def run_rule(smk=None) -> None:
     entry_file(ctx.stage, script.parents[1])  # a clear error naming the expected file
     main = importlib.import_module(entry_module(ctx.stage)).main
     pin_threads(getattr(smk, "threads", 1))
+    # The cycle collector's young generation every 100,000 allocations, not 700: a frame's shapes or a
+    # file's JSON make thousands of short-lived objects that refcounting frees anyway. A twin_camera job
+    # 23.3-23.5 s instead of 23.8-24.2 s, pose2d's 4.8 s instead of 4.8-6.5 s (two runs each, interleaved).
+    gc.set_threshold(100_000, *gc.get_threshold()[1:])
     with contextlib.ExitStack() as stack:
         if ctx.log is not None:
             ctx.log.parent.mkdir(parents=True, exist_ok=True)
