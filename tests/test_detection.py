@@ -32,6 +32,7 @@ VISIBLE = 0.5  # visibility from which a ball counts as visible (module docstrin
 FALSE_PX = 5.0  # a detection further than this from the truth is a false detection
 WIDTH, HEIGHT = 480, 360
 WALL_BGR = render.hsv_to_bgr(*render.WALL_HSV)
+WINDOW_ROWS = 2 * BallDetector().scaled(WIDTH)[2] + 1  # the rows of a search window at 480 px wide
 
 
 @pytest.fixture(scope="module")
@@ -209,10 +210,22 @@ def test_a_tracked_ball_is_searched_on_its_window_rows_alone(twin_stream, scored
     out = detect_stream([CountingFrame(f, calls) for f in frames], BallDetector())
     pd.testing.assert_frame_equal(out, found)  # and so as the whole images (the test above)
     tracked = int(found["detected"].to_numpy()[:-1].sum())  # frames after one with the ball
-    window = 2 * BallDetector().scaled(WIDTH)[2] + 1
     assert calls.count("whole") == 1 + len(frames) - tracked  # the first frame's size, then no ball
-    assert [c for c in calls if c != "whole"] and all(c <= window for c in calls if c != "whole")
+    assert [c for c in calls if c != "whole"] and all(c <= WINDOW_ROWS for c in calls if c != "whole")
     assert len(calls) == len(frames) + 1
+
+
+def test_a_frame_of_another_size_is_searched_whole_not_on_the_first_frames_rows(twin_stream, scored):
+    frames, _ = twin_stream
+    found, _, _ = scored
+    i = int(np.flatnonzero(found["detected"].to_numpy()[:-1] & found["detected"].to_numpy()[1:])[0])
+    image, _ = frames[i + 1].decode(1)
+    taller = render.encode_jpeg(np.vstack([image, np.zeros((80, WIDTH, 3), np.uint8)]))  # ball where it was
+    calls = []
+    out = detect_stream([CountingFrame(frames[i], calls), CountingFrame(CameraFrame(0, taller), calls)],
+                        BallDetector())
+    assert calls == ["whole", "whole", WINDOW_ROWS, "whole"]  # size, frame 1, frame 2's band, then whole
+    np.testing.assert_array_equal(out[["u", "v"]].to_numpy(), found.iloc[i:i + 2][["u", "v"]].to_numpy())
 
 
 @pytest.mark.parametrize(("width", "reduction"), [(480, 1), (640, 1), (1439, 1), (1440, 2), (1920, 2),

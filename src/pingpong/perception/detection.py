@@ -259,6 +259,8 @@ def _detect_frame(frame, detector: BallDetector, previous, level: int, reduction
     scale = reduction if previous is None else level
     rows = None if shape is None or previous is None else _window(shape, detector, previous)[1::2]
     image, reason = _decoded(frame, scale, rows)
+    if rows is not None and image is not None and image.shape != shape:  # a frame of another size: whole
+        image, reason = _decoded(frame, scale)
     if reason:
         return None, reason, scale
     found = _ball_at(image, scale, detector, previous)
