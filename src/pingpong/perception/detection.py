@@ -200,9 +200,9 @@ def stream_reduction(width: int) -> int:
 
 
 def _decoded(frame, reduction: int, rows: tuple[int, int] | None = None) -> tuple[np.ndarray | None, str]:
-    """(image at 1/reduction, '') or (None or the damaged image, the decoder's complaint). rows: at
-    full resolution, only these [first, end) are needed, where the frame can decode them alone."""
-    if rows is not None and reduction == 1 and hasattr(frame, "decode_rows"):
+    """(image at 1/reduction, '') or (None or the damaged image, the decoder's complaint). rows (with
+    reduction 1): only these [first, end) are needed, where the frame can decode them alone."""
+    if rows is not None and hasattr(frame, "decode_rows"):
         image, reason = frame.decode_rows(*rows)
     else:
         image, reason = frame.decode(reduction)
@@ -257,7 +257,8 @@ def _detect_frame(frame, detector: BallDetector, previous, level: int, reduction
     shape: the stream's full-resolution image shape, whose window rows alone are decoded where the
     frame can (CameraFrame.decode_rows); None decodes whole images."""
     scale = reduction if previous is None else level
-    rows = None if shape is None or previous is None else _window(shape, detector, previous)[1::2]
+    banded = shape is not None and previous is not None and scale == 1
+    rows = _window(shape, detector, previous)[1::2] if banded else None
     image, reason = _decoded(frame, scale, rows)
     if rows is not None and image is not None and image.shape != shape:  # a frame of another size: whole
         image, reason = _decoded(frame, scale)
