@@ -2,6 +2,8 @@
 and the small twin run that the stage tests share."""
 
 import math
+import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,7 +22,11 @@ TINY_RUN = yaml.safe_load((ROOT / TINY_CONFIG).read_text())
 
 @pytest.fixture(scope="session")
 def tiny_run(tmp_path_factory):
-    """The checkout's workflow run on the tiny config; returns the run's root folder."""
+    """The checkout's workflow run on the tiny config; returns the run's root folder. For iterating on one
+    test only, PINGPONG_TINY_RUN may name a finished tiny run to reuse (never set in CI: its artifacts may
+    be of older code)."""
+    if os.environ.get("PINGPONG_TINY_RUN"):
+        return Path(os.environ["PINGPONG_TINY_RUN"])
     root = copy_checkout(tmp_path_factory.mktemp("tiny_run"))
     snakemake(root, configfile=TINY_CONFIG)  # rule all
     return root
