@@ -24,7 +24,18 @@ validate_config(config, Path(workflow.basedir) / "config/schema.yaml", enums=REG
 
 
 include: "workflow/rules/common.smk"
-include: "workflow/rules/twin.smk"
+
+
+# The twin's rules write raw/; a lab's raw/ is only ever read, so under source: lab they do not exist and
+# whatever is missing there is an error before any job runs, never something to simulate.
+if config["source"] == "twin":
+
+    include: "workflow/rules/twin.smk"
+
+else:
+    check_lab_layout()
+
+
 include: "workflow/rules/perception.smk"
 include: "workflow/rules/curation.smk"
 include: "workflow/rules/learning.smk"

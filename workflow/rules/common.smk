@@ -1,8 +1,10 @@
 # Shared helpers of the rules: sessions, cameras and each stage's code hash.
+import re
 from pathlib import Path
 
 from pingpong.common.codehash import stage_code_hash
 from pingpong.common.stages import STAGE_SCRIPT as _SCRIPT
+from pingpong.io.lab_layout import CAMERA_SUFFIXES, lab_layout_problems
 from pingpong.learning.grid import expand_grid
 
 STAGE_SCRIPT = f"../../{_SCRIPT}"  # every rule's script, relative to workflow/rules/
@@ -33,19 +35,13 @@ def cameras():
     return config["lab"]["cameras"]
 
 
-# the camera file formats a lab may hand over (pingpong.io.camera_streams detects which is which)
-CAMERA_SUFFIXES = (".mcap", ".mp4", ".avi", ".mkv", ".mov")
-
-
 def camera_file(session, cam):
     """A camera's recording: raw/sessions/{session}/{cam}.mcap (the twin's; MCAP or a ROS 2 bag), or a
-    video file; more than one is an error naming them."""
+    video file (several of one camera are an error of check_lab_layout)."""
     if config["source"] == "twin":
         return f"raw/sessions/{session}/{cam}.mcap"
     found = [f"raw/sessions/{session}/{cam}{s}" for s in CAMERA_SUFFIXES
              if Path(f"raw/sessions/{session}/{cam}{s}").exists()]
-    if len(found) > 1:
-        raise WorkflowError(f"session {session}, {cam}: several recordings {found}; keep one")
     return found[0] if found else f"raw/sessions/{session}/{cam}.mcap"
 
 
@@ -81,9 +77,15 @@ def session_cameras(session):
     return present
 
 
+def one_of(names):
+    """A wildcard constraint matching exactly these names (cameras and sessions are named by the lab, so
+    `overlay_{session}_{cam}.png` could split `lab_01_cam_01` either way without it)."""
+    return "|".join(re.escape(n) for n in names) or "(?!)"
+
+
 wildcard_constraints:
-    session=r"[A-Za-z0-9_\-]+",
-    cam=r"cam\d+",
+    session=one_of(sessions()),
+    cam=one_of(cameras()),
     config_id=r"[0-9a-f]{12}",
     fold=r"\d+",
 
@@ -101,12 +103,36 @@ def raw_outputs():
     )
 
 
-def calibration_captures():
-    """Every camera's table shot: needed to fit, and to check an import where the lab has them."""
-    shots = expand("raw/calibration/{cam}/table.png", cam=cameras())
-    if config["perception"]["calibration_import"] and not all(Path(s).exists() for s in shots):
-        return []
-    return shots
+def calibration_captures(wildcards=None):
+    """The calibration rule's inputs by name (unpack): every camera's intrinsics views and extrinsics shot
+    in any image format OpenCV reads (pingpong.io.calibration_files; the twin's as it writes them), or
+    the imported calibration with the table shots where the lab has them all; the scene-points file of
+    perception.calibration_extrinsics. Missing images stand as their expected names (intrinsics_00.png,
+    table.png / extrinsics.png), so that the run stops naming them."""
+    from pingpong.io.calibration_files import (BOARD_SHOT, TABLE_SHOT, CaptureLayoutError, extrinsics_shot,
+                                               intrinsics_views)
+
+    perception = config["perception"]
+    method = perception["calibration_extrinsics"]
+    kind = method["type"] if isinstance(method, dict) else "table_mat"
+    folders = [f"raw/calibration/{cam}" for cam in cameras()]
+    stem = BOARD_SHOT if kind == "board" else TABLE_SHOT
+    try:
+        found = {f: extrinsics_shot(f, TABLE_SHOT if perception["calibration_import"] else stem)
+                 for f in folders}
+    except CaptureLayoutError as err:
+        raise WorkflowError(str(err)) from None
+    if perception["calibration_import"]:
+        shots = [str(s) for s in found.values()] if all(found.values()) else []
+        return {"calibration_import": perception["calibration_import"], "shots": shots}
+    if config["source"] == "twin":  # the twin_calibration rule's outputs
+        views = [f"{f}/intrinsics_{k:02d}.png" for f in folders
+                 for k in range(config["twin"]["calibration_views"])]
+    else:
+        views = [str(v) for f in folders for v in (intrinsics_views(f) or [f"{f}/intrinsics_00.png"])]
+    shots = [] if kind == "points" else [str(found[f] or f"{f}/{stem}.png") for f in folders]
+    points = [method["file"]] if kind == "points" and "file" in method else []
+    return {"views": views, "shots": shots, "scene_points": points}
 
 
 def has_optitrack():
@@ -126,6 +152,20 @@ def motive_take_start_ns(session):
     return config["lab"]["motive_take_start_ns"].get(session) if optitrack_path(session).endswith(".csv") else None
 
 
+def check_lab_layout():
+    """Under source: lab, every problem of raw/ against the config, before any job runs (no rule writes raw/
+    there, so anything missing could only fail later, one job at a time)."""
+    if config["source"] != "lab":
+        return
+    lab = config["lab"]
+    problems = lab_layout_problems(Path("."), lab["sessions"], lab["cameras"],
+                                   Path(optitrack_path("any")).name if has_optitrack() else None,
+                                   config["perception"]["calibration_import"])
+    if problems:
+        raise WorkflowError("the lab's recordings under raw/ do not match the config:\n  - "
+                            + "\n  - ".join(problems) + "\n(see the README's 'Bringing your lab's recordings')")
+
+
 def twin_reports():
     """Reports that compare against the twin's truth: only twin runs have one."""
     if config["source"] != "twin":
@@ -142,7 +182,7 @@ REPORT_TABLES = {
     "curation": ["curation", *(["curation_accuracy"] if TWIN_ONLY else [])],
     "learning": ["cv_results", "strike_error", "strike_error_by_frame"],
     "uncertainty": ["uncertainty", "uncertainty_verdict", "uncertainty_by_frame", "uncertainty_path_band",
-                    "uncertainty_oracle"],
+                    *(["uncertainty_oracle"] if TWIN_ONLY else [])],
     "robot": ["robot", "robot_limits", "robot_ablation", "servo_accuracy"],
 }
 

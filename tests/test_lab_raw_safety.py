@@ -1,0 +1,81 @@
+"""A lab's raw/ is read, never written: under source: lab no twin rule exists, and whatever is missing or
+misnamed stops the workflow before any job runs, naming the path and what belongs there."""
+
+import hashlib
+import shutil
+
+import pytest
+from workflow_util import copy_checkout, snakemake, write_config
+
+LAB = {"source": "lab", "lab": {"sessions": ["s00"], "cameras": ["cam0", "cam1", "cam2"]}}
+
+
+def raw_digest(root) -> dict[str, str]:
+    """SHA-256 of every file under raw/ (and the folders, as empty entries)."""
+    return {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest() if p.is_file() else "dir"
+            for p in sorted((root / "raw").rglob("*"))}
+
+
+@pytest.fixture
+def lab_root(tiny_run, tmp_path):
+    """The tiny run's recordings laid out as a lab hands them over (calibration views, streams, OpenPose,
+    OptiTrack), and no twin truth."""
+    root = copy_checkout(tmp_path)
+    shutil.copytree(tiny_run / "raw/calibration", root / "raw/calibration")
+    shutil.copytree(tiny_run / "raw/sessions/s00", root / "raw/sessions/s00")
+    write_config(root, LAB)
+    return root
+
+
+def scheduled_rules(proc) -> set[str]:
+    """The rules of a dry run's job table (`snakemake -n` prints 'rule  count' rows after 'job')."""
+    lines = proc.stdout.splitlines()
+    start = next(i for i, line in enumerate(lines) if line.split()[:2] == ["job", "count"])
+    rows = [line.split() for line in lines[start + 2:]]
+    return {row[0] for row in rows if len(row) == 2 and row[0] != "total"}
+
+
+def test_a_complete_lab_layout_schedules_no_twin_rule(lab_root):
+    proc = snakemake(lab_root, "-n")
+    rules = scheduled_rules(proc)
+    assert {"calibration", "detection", "pose2d", "triangulation", "paddle"} <= rules
+    assert not {r for r in rules if r.startswith("twin_") or r == "report_twin_flights"}
+
+
+def test_missing_openpose_and_calibration_view_stop_before_any_job(lab_root):
+    shutil.rmtree(lab_root / "raw/sessions/s00/openpose/cam1")
+    (lab_root / "raw/calibration/cam2/table.png").unlink()
+    before = raw_digest(lab_root)
+    for args in (["-n"], []):
+        proc = snakemake(lab_root, *args, check=False)
+        said = proc.stdout + proc.stderr  # Snakemake prints an error of the workflow's parsing to stdout
+        assert proc.returncode != 0
+        assert "raw/sessions/s00/openpose/cam1/: missing or empty; expected the OpenPose-family JSON" in said
+        assert "raw/calibration/cam2/table.*: missing; expected the camera's view of the table" in said
+    assert raw_digest(lab_root) == before
+    assert not (lab_root / "interim").exists() or not any((lab_root / "interim").rglob("*.parquet"))
+    assert not (lab_root / "logs").exists()  # no job started
+
+
+def test_cameras_named_as_the_files_do(lab_root):
+    """Any camera name works (no `cam\\d+` constraint); a configured camera with no recording anywhere is an
+    error listing the names the files have."""
+    write_config(lab_root, {**LAB, "lab": {**LAB["lab"], "cameras": ["cam_01", "cam1", "cam2"]}})
+    proc = snakemake(lab_root, "-n", check=False)
+    assert proc.returncode != 0
+    assert "no session has a recording of ['cam_01']" in proc.stdout
+    assert "named ['cam0', 'cam1', 'cam2']: name the cameras as the files do" in proc.stdout
+    for old, new in (("cam0", "cam_01"), ("cam1", "Cam-B"), ("cam2", "c3")):
+        (lab_root / f"raw/sessions/s00/{old}.mcap").rename(lab_root / f"raw/sessions/s00/{new}.mcap")
+        (lab_root / f"raw/sessions/s00/openpose/{old}").rename(lab_root / f"raw/sessions/s00/openpose/{new}")
+        (lab_root / f"raw/calibration/{old}").rename(lab_root / f"raw/calibration/{new}")
+    write_config(lab_root, {**LAB, "lab": {**LAB["lab"], "cameras": ["cam_01", "Cam-B", "c3"]}})
+    rules = scheduled_rules(snakemake(lab_root, "-n"))
+    assert {"detection", "pose2d", "triangulation"} <= rules
+
+
+@pytest.mark.parametrize("name", ["cam 1", "../cam1", "optitrack", "cam.1"])
+def test_unusable_camera_names_are_refused(lab_root, name):
+    write_config(lab_root, {**LAB, "lab": {**LAB["lab"], "cameras": [name, "cam1", "cam2"]}})
+    proc = snakemake(lab_root, "-n", check=False)
+    assert proc.returncode != 0 and f"lab.cameras: {name!r} is" in proc.stdout
