@@ -1,17 +1,23 @@
 """OpenPose JSON as OpenPose writes it, read back; the OpenPose simulator's behaviour."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from pingpong.frames import BODY25, MODEL_JOINT_IDS
 from pingpong.io.openpose_json import (
     BODY25_NAME,
     KEYPOINT_MODELS,
+    MIN_PEOPLE,
+    KeypointsFileError,
+    check_declared_model,
     format_keypoints_json,
     keypoints_filename,
     list_frame_files,
+    model_comparison,
     read_keypoints_folder,
     read_keypoints_json,
     to_body25,
@@ -43,7 +49,7 @@ def test_json_has_openposes_fields_and_round_trips(tmp_path):
 
 def test_folder_reader_sorts_frames_and_pads_people(tmp_path):
     write_keypoints_json(tmp_path, "s_cam0", 2, np.ones((1, 25, 3)))
-    write_keypoints_json(tmp_path, "s_cam0", 0, np.full((3, 25, 3), 2.0))
+    write_keypoints_json(tmp_path, "s_cam0", 0, np.full((3, 25, 3), 0.5))
     write_keypoints_json(tmp_path, "s_cam0", 1, np.zeros((0, 25, 3)))
     frames, keypoints = read_keypoints_folder(tmp_path)
     assert frames.tolist() == [0, 1, 2] and keypoints.shape == (3, 3, 25, 3)
@@ -252,3 +258,226 @@ def test_frames_at_once_drop_absent_people_and_hide_the_occluded():
 
     assert np.median(player_confidence(frames[0])) < 0.45  # behind the nearer person: low confidences
     assert np.median(player_confidence(frames[1])) > 0.5  # in the clear
+
+
+# ---- what real tools write: empty persons, counts against the video, values, the declared model
+
+
+@pytest.mark.parametrize("empty", [{}, {"person_id": [-1]}, {"pose_keypoints_2d": []},
+                                   {"pose_keypoints_2d": None, "face_keypoints_2d": []}])
+def test_a_person_without_keypoints_is_no_person(tmp_path, empty):
+    path = tmp_path / "cam.00000.json"
+    path.write_text(json.dumps({"version": 1.3, "people": [empty]}))
+    assert read_keypoints_json(path).shape == (0, 25, 3)
+    person = in_model_order(KNOWN, "BODY_25")
+    path.write_text(json.dumps({"people": [empty, {"pose_keypoints_2d": person.ravel().tolist()}, empty]}))
+    np.testing.assert_allclose(read_keypoints_json(path), [KNOWN])
+    frames, keypoints = read_keypoints_folder(tmp_path, n_frames=1)
+    assert frames.tolist() == [0] and keypoints.shape == (1, 1, 25, 3)
+
+
+@pytest.mark.parametrize(("name", "extra", "missing"), [
+    ("cam2.{:05d}.json", "cam2.00004.json", "cam2.00004.json, cam2.00005.json"),
+    ("cam2.{}.json", "cam2.4.json", "cam2.4.json, cam2.5.json"),
+    ("cam2_{:012d}_keypoints.json", "cam2_000000000004_keypoints.json",
+     "cam2_000000000004_keypoints.json, cam2_000000000005_keypoints.json")])
+def test_the_frame_count_against_the_video_names_extra_and_missing_files(tmp_path, name, extra, missing):
+    _touch_frames(tmp_path, [name.format(frame) for frame in range(5)])
+    assert read_keypoints_folder(tmp_path, n_frames=5)[0].tolist() == [0, 1, 2, 3, 4]
+    told = rf"{tmp_path}: 5 keypoints files \(frames 0..4\) for a video of 4 frames; .*; 1 extra: {extra}$"
+    with pytest.raises(KeypointsFileError, match=told):
+        read_keypoints_folder(tmp_path, n_frames=4)
+    (tmp_path / extra).unlink()
+    told = rf"4 keypoints files .* 6 frames; expected frames 0..5, one file per frame; 2 missing: {missing}$"
+    with pytest.raises(KeypointsFileError, match=told):
+        read_keypoints_folder(tmp_path, n_frames=6)
+
+
+def test_frames_from_one_name_the_first_missing_and_the_last_extra(tmp_path):
+    _touch_frames(tmp_path, [f"take.{frame:03d}.json" for frame in range(1, 13)])
+    told = r"12 keypoints files \(frames 1..12\) for a video of 12 frames.*; 1 extra: take.012.json; 1 "
+    with pytest.raises(KeypointsFileError, match=told + r"missing: take.000.json$"):
+        read_keypoints_folder(tmp_path, n_frames=12)
+    told = r"; 12 missing: take.000.json, take.013.json, take.014.json, take.015.json, take.016.json and 7 "
+    with pytest.raises(KeypointsFileError, match=told):
+        read_keypoints_folder(tmp_path, n_frames=24)
+
+
+def _pose_with(index: int, value) -> list:
+    pose = in_model_order(KNOWN, "BODY_25").ravel().tolist()
+    pose[index] = value
+    return pose
+
+
+@pytest.mark.parametrize(("text", "expected"), [
+    ("NaN", r"keypoint 2 \(RShoulder\) has y = nan, expected a finite number"),
+    ("Infinity", r"keypoint 2 \(RShoulder\) has y = inf, expected a finite number"),
+    ("-1e999", r"keypoint 2 \(RShoulder\) has y = -inf, expected a finite number"),
+    ("1" + "0" * 400, r"keypoint 2 \(RShoulder\) has y = inf, expected a finite number"),
+    ("null", r"pose_keypoints_2d value 7 is None \(NoneType\), expected a number"),
+    ('"301.5"', r"pose_keypoints_2d value 7 is '301.5' \(str\), expected a number"),
+    ("true", r"pose_keypoints_2d value 7 is True \(bool\), expected a number"),
+    ("[1]", r"pose_keypoints_2d value 7 is \[1\] \(list\), expected a number")])
+def test_values_must_be_finite_numbers(tmp_path, text, expected):
+    path = tmp_path / "cam_000000000003_keypoints.json"
+    good = json.dumps({"pose_keypoints_2d": _pose_with(7, 1.0)})
+    bad = json.dumps({"pose_keypoints_2d": _pose_with(7, "VALUE")}).replace('"VALUE"', text)
+    path.write_text(f'{{"version":1.3,"people":[{good},{bad}]}}')
+    with pytest.raises(KeypointsFileError, match=f"{path}: person 1: {expected}"):
+        read_keypoints_json(path)
+
+
+@pytest.mark.parametrize(("pose", "expected"), [
+    (_pose_with(20, 1.5), r"person 0: keypoint 6 \(LElbow\) has confidence 1.5, expected one in \[0, 1\]"),
+    (_pose_with(74, -0.1), r"person 0: keypoint 24 \(RHeel\) has confidence -0.1, expected one in \[0, 1\]"),
+    (_pose_with(0, 0.0)[:-1], r"person 0 has 74 pose_keypoints_2d values, not a multiple of 3 \(x, y, "
+                              r"confidence per keypoint\), expected 75 \(25 keypoints x 3\) for BODY_25$"),
+    (_pose_with(0, 0.0)[:-3], r"person 0 has 72 pose_keypoints_2d values, expected 75 .* for BODY_25$"),
+    ({"x": 1}, r"person 0: pose_keypoints_2d is dict, expected a list of 75 numbers")])
+def test_confidences_and_lengths_are_checked(tmp_path, pose, expected):
+    path = tmp_path / "cam.00001.json"
+    path.write_text(json.dumps({"people": [{"pose_keypoints_2d": pose}]}))
+    with pytest.raises(KeypointsFileError, match=f"{path}: {expected}"):
+        read_keypoints_json(path)
+    path.write_text(json.dumps({"people": [[1, 2, 3]]}))
+    with pytest.raises(KeypointsFileError, match=r"person 0 is list \[1, 2, 3\], expected an object"):
+        read_keypoints_json(path)
+    path.write_text(json.dumps({"people": {"0": {}}}))
+    with pytest.raises(KeypointsFileError, match="not an OpenPose keypoints JSON .*people is dict, not a "):
+        read_keypoints_json(path)
+
+
+TINY_OPENPOSE = "raw/sessions/s00/openpose/cam{}"
+
+
+def as_body25b(person: np.ndarray, head: str) -> np.ndarray:
+    """(25, 3) a BODY_25 person in BODY_25B's order by joint name; BODY_25B's own UpperNeck and HeadTop
+    undetected (head 'absent') or placed on the neck-nose line (head 'derived') as a real model fills them."""
+    out = np.array([person[BODY25.index(n)] if n in BODY25 else (0.0, 0.0, 0.0)
+                    for n in KEYPOINT_MODELS["BODY_25B"]])
+    neck, nose = person[BODY25.index("Neck")], person[BODY25.index("Nose")]
+    if head == "derived" and neck[2] > 0 and nose[2] > 0:
+        for name, along in (("UpperNeck", 0.4), ("HeadTop", 1.8)):
+            out[KEYPOINT_MODELS["BODY_25B"].index(name)] = [*(neck[:2] + along * (nose[:2] - neck[:2])),
+                                                            min(neck[2], nose[2])]
+    return out
+
+
+def write_as(folder, people_by_frame, convert) -> None:
+    folder.mkdir()
+    for frame, people in enumerate(people_by_frame):
+        write_model_json(folder / f"cam.{frame:05d}.json", [convert(p) for p in people])
+
+
+@pytest.mark.parametrize("cam", [0, 1, 2])
+def test_the_twins_body25_folders_pass_the_model_check(tiny_run, cam):
+    """Every person of the tiny run read as BODY_25 and as BODY_25B: the declared BODY_25 is far the
+    shorter skeleton, so no error (the check's margin: the wrong reading is longer by ~2x)."""
+    folder = tiny_run / TINY_OPENPOSE.format(cam)
+    frames, people = read_keypoints_folder(folder)
+    assert len(frames) > 1000
+    n, share, ratio, _ = model_comparison(people, "BODY_25", "BODY_25B")
+    assert n > 10_000 and share < 0.2 and ratio < 0.6
+
+
+@pytest.mark.parametrize("head", ["absent", "derived"])
+def test_a_model_of_the_same_length_declared_wrongly_is_named(tiny_run, tmp_path, head):
+    """The twin's BODY_25 people written as BODY_25B: declared BODY_25 (the silent 376 mm error of the
+    issue) and BODY_25 files declared BODY_25B are both refused naming a file and the likely model;
+    declared rightly, both read the same joints."""
+    frames, people = read_keypoints_folder(tiny_run / TINY_OPENPOSE.format(1))
+    people = [p[p[:, :, 2].max(axis=1) > 0] for p in people[:300]]
+    write_as(tmp_path / "b25b", people, lambda p: as_body25b(p, head))
+    write_as(tmp_path / "b25", people, lambda p: p)
+    with pytest.raises(KeypointsFileError, match=r"b25b/cam.\d{5}.json: keypoints declared BODY_25 look like "
+                                                 r"BODY_25B: .*\(BODY_25B likely\)"):
+        read_keypoints_folder(tmp_path / "b25b", "BODY_25")
+    with pytest.raises(KeypointsFileError, match=r"b25/cam.\d{5}.json: keypoints declared BODY_25B look like "
+                                                 r"BODY_25: .*\(BODY_25 likely\)"):
+        read_keypoints_folder(tmp_path / "b25", "BODY_25B")
+    _, from_b25b = read_keypoints_folder(tmp_path / "b25b", "BODY_25B")
+    _, from_b25 = read_keypoints_folder(tmp_path / "b25", "BODY_25")
+    joints = list(MODEL_JOINT_IDS)
+    np.testing.assert_allclose(from_b25b[..., joints, :], from_b25[..., joints, :])
+
+
+def _rotated(points: np.ndarray, axis: str, degrees: float, about=(0.0, 0.0, 0.0)) -> np.ndarray:
+    rotation = Rotation.from_euler(axis, degrees, degrees=True)
+    return rotation.apply(points - about) + about
+
+
+def posed_body(pose: str) -> np.ndarray:
+    """(25, 3) STANDING's joints (facing -y, feet on the floor, z up from it) in another plausible pose."""
+    body = STANDING + [0.0, 0.0, 0.76]
+    upper = body[:, 2] > 0.9  # above the hips
+    if pose == "lying on the side":
+        return _rotated(body, "y", 90) + [0.0, 0.0, 0.3]
+    if pose in ("lying on the back", "lying face down"):
+        return _rotated(body, "x", -90 if pose == "lying on the back" else 90) + [0.0, 0.0, 0.15]
+    if pose == "bending":
+        body[upper] = _rotated(body[upper], "x", 80, about=(0.0, 0.0, 0.95))
+    if pose == "crouching":
+        knees = [BODY25.index("RKnee"), BODY25.index("LKnee")]
+        body[upper] -= [0.0, 0.0, 0.45]
+        body[[BODY25.index(n) for n in ("MidHip", "RHip", "LHip")]] -= [0.0, 0.0, 0.45]
+        body[knees] = body[knees] * [1, 0, 0] + [0.0, -0.4, 0.5]
+    return body
+
+
+def posed_people(pose: str, rng: np.random.Generator, n_frames: int = 40) -> np.ndarray:
+    """(F, P, 25, 3) simulated OpenPose BODY_25 people of two people in the pose, turned every way, in
+    view of one camera of the twin's rig."""
+    camera = make_rig(np.random.default_rng(7))[2]  # at the -y end, looking along +y
+    bodies = np.array([[_rotated(posed_body(pose), "z", rng.uniform(0, 360))
+                        + [rng.uniform(-1.0, 1.0), rng.uniform(1.5, 3.0), -0.76] for _ in range(n_frames)]
+                       for _ in range(2)])
+    frames = simulate_openpose_frames(camera, bodies, rng)
+    out = np.zeros((n_frames, 2, 25, 3))
+    for f, people in enumerate(frames):
+        out[f, :len(people)] = people
+    return out
+
+
+@pytest.mark.parametrize("pose", ["standing", "lying on the side", "lying on the back", "lying face down",
+                                  "bending", "crouching"])
+def test_people_lying_or_bending_pass_and_a_wrong_model_is_still_named(pose):
+    people = posed_people(pose, np.random.default_rng(11))
+    as_b25b = np.array([[as_body25b(p, "derived") for p in frame] for frame in people])
+    paths = [Path(f"cam.{f:05d}.json") for f in range(len(people))]
+    for raw, model, other in ((people, "BODY_25", "BODY_25B"), (as_b25b, "BODY_25B", "BODY_25")):
+        n, share, ratio, _ = model_comparison(raw, model, other)
+        assert n >= 60 and share < 0.3 and ratio < 0.8  # the declared model's skeleton the shorter
+        check_declared_model(raw, model, paths)
+        told = rf"cam.\d{{5}}.json: keypoints declared {other} look like {model}"
+        with pytest.raises(KeypointsFileError, match=told):
+            check_declared_model(raw, other, paths)
+
+
+# COCO with MMPose's keypoint order and a neck added: 18 keypoints as OpenPose's COCO, in another order
+COCO_OTHER_ORDER = ("Nose", "Neck", "LEye", "REye", "LEar", "REar", "LShoulder", "RShoulder", "LElbow",
+                    "RElbow", "LWrist", "RWrist", "LHip", "RHip", "LKnee", "RKnee", "LAnkle", "RAnkle")
+
+
+@pytest.mark.parametrize("model", ["COCO", "HALPE_26"])
+def test_coco_and_halpe_pass_and_a_model_of_their_length_is_told_apart(model, monkeypatch):
+    """No two registered models but BODY_25 and BODY_25B share a keypoint count, so COCO and HALPE_26 meet
+    only the count check; a model of the same count in another order (here registered for the test) is
+    told apart by the same skeleton lengths."""
+    people = posed_people("standing", np.random.default_rng(12))
+    raw = np.array([[in_model_order(p, model) for p in frame] for frame in people])
+    raw[..., 2] *= (people[..., 2] > 0).any(axis=-1)[..., None]  # absent people stay all zeros
+    paths = [Path(f"cam.{f:05d}.json") for f in range(len(people))]
+    check_declared_model(raw, model, paths)
+    assert sum(len(names) == len(KEYPOINT_MODELS[model]) for names in KEYPOINT_MODELS.values()) == 1
+    names = KEYPOINT_MODELS[model]
+    other = COCO_OTHER_ORDER if model == "COCO" else names[16::-1] + names[17:]  # Halpe's first 17 reversed
+    monkeypatch.setitem(KEYPOINT_MODELS, "OTHER", other)
+    with pytest.raises(KeypointsFileError, match=rf"declared OTHER look like {model}: .*\({model} likely\)"):
+        check_declared_model(raw, "OTHER", paths)
+    check_declared_model(raw, model, paths)
+
+
+def test_a_folder_of_few_people_is_not_judged():
+    people = posed_people("standing", np.random.default_rng(13), n_frames=4)[:, :1]
+    assert 0 < (people[..., 2] > 0).any(axis=-1).sum() < MIN_PEOPLE
+    check_declared_model(people, "BODY_25B", [Path(f"cam.{f}.json") for f in range(len(people))])

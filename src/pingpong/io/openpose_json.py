@@ -7,11 +7,18 @@ the source image; an undetected joint is 0,0,0. K is the model's keypoint count,
 name: the caller declares the model (KEYPOINT_MODELS) and the reader maps its joints by name into the
 BODY_25 layout (`to_body25`). Files are named by one of LAYOUTS (or a caller's regex); the writer writes
 BODY_25 in OpenPose's own layout, as the digital twin needs.
+
+Read as real tools write it: a person without keypoints ({}) is no person; values are checked where they
+enter (finite numbers, confidences in [0, 1], K triples); a folder is checked against the video's frame
+count (the extra or missing files named) and its declared model against the others of K keypoints
+(`check_declared_model`: BODY_25B declared BODY_25 would read silently with the wrong joints). Every
+refusal is a KeypointsFileError naming the file (and the person).
 """
 
 import json
 import os
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -51,6 +58,10 @@ LAYOUTS = {
     "openpose": ("{name}_{frame:012d}_keypoints.json", r".*_(\d{12})_keypoints\.json"),  # OpenPose's own
     "dotted": ("{name}.{frame}.json", r".*\.(\d+)\.json"),  # e.g. {name}.{frame:05d}.json, any digit count
 }
+
+
+class KeypointsFileError(ValueError):
+    """A keypoints file or folder that does not hold what the declared model and layout promise."""
 
 
 def keypoints_filename(basename: str, frame: int) -> str:
@@ -112,22 +123,71 @@ def _count_hint(count: int, model: str) -> str:
     return f"; {count} values fit {' or '.join(fits)}: declare that model"
 
 
-def read_keypoints_json(path: str | os.PathLike, model: str = "BODY_25") -> np.ndarray:
-    """People (P, 25, 3) in BODY_25 layout of one file of the declared model; errors name the file."""
+_NUMBERS = {int, float}  # JSON numbers as json.loads gives them; bool, str and None are not
+
+
+def _pose_values(path: Path, index: int, person, model: str) -> np.ndarray | None:
+    """One person's (K, 3) keypoints of the declared model, checked; None for a person with no
+    keypoints ({}, or an absent, null or empty pose_keypoints_2d), as markerless-capture tools write
+    for a frame where nobody is associated."""
+    names = KEYPOINT_MODELS[model]
+    where = f"{path}: person {index}"
+    if not isinstance(person, dict):
+        raise KeypointsFileError(f"{where} is {type(person).__name__} {person!r:.40}, expected an object "
+                                 '{"pose_keypoints_2d":[x,y,c]*K,..}')
+    pose = person.get("pose_keypoints_2d")
+    if pose is None or pose == []:
+        return None
+    if not isinstance(pose, list):
+        raise KeypointsFileError(f"{where}: pose_keypoints_2d is {type(pose).__name__}, expected a list of "
+                                 f"{3 * len(names)} numbers (x, y, confidence per {model} keypoint)")
+    if not set(map(type, pose)) <= _NUMBERS:
+        k = next(k for k, value in enumerate(pose) if type(value) not in _NUMBERS)
+        raise KeypointsFileError(f"{where}: pose_keypoints_2d value {k} is {pose[k]!r} "
+                                 f"({type(pose[k]).__name__}), expected a number")
+    if len(pose) % 3 or len(pose) != 3 * len(names):
+        triples = "" if len(pose) % 3 == 0 else ", not a multiple of 3 (x, y, confidence per keypoint)"
+        raise KeypointsFileError(f"{where} has {len(pose)} pose_keypoints_2d values{triples}, expected "
+                                 f"{3 * len(names)} ({len(names)} keypoints x 3) for {model}"
+                                 f"{_count_hint(len(pose), model)}")
+    try:
+        values = np.array(pose, float).reshape(len(names), 3)
+    except OverflowError:  # an integer of hundreds of digits
+        values = np.array([float(v) if abs(v) < 1e308 else np.inf for v in pose]).reshape(len(names), 3)
+    bad = ~np.isfinite(values)  # NaN, Infinity and numbers beyond a double (1e999) all parse as such
+    bad_confidence = ~bad[:, 2] & ((values[:, 2] < 0) | (values[:, 2] > 1))
+    if bad.any():
+        k, c = np.argwhere(bad)[0]
+        raise KeypointsFileError(f"{where}: keypoint {k} ({names[k]}) has {'xyc'[c]} = {values[k, c]}, "
+                                 "expected a finite number")
+    if bad_confidence.any():
+        k = int(np.argmax(bad_confidence))
+        raise KeypointsFileError(f"{where}: keypoint {k} ({names[k]}) has confidence {values[k, 2]:g}, "
+                                 "expected one in [0, 1]")
+    return values
+
+
+def read_model_keypoints(path: str | os.PathLike, model: str = "BODY_25") -> np.ndarray:
+    """People (P, K, 3) of one file in the declared model's own keypoint order, values checked (finite,
+    confidence in [0, 1], K keypoints); persons without keypoints left out; errors name the file."""
     path = Path(path)
     names = model_keypoint_names(model)
     try:
         doc = json.loads(path.read_text())
-        people = [np.asarray(person["pose_keypoints_2d"], float) for person in doc["people"]]
-    except (ValueError, KeyError, TypeError) as exc:
-        raise ValueError(f"{path}: not an OpenPose keypoints JSON ({type(exc).__name__}: {exc}); expected "
-                         '{"version":..,"people":[{"pose_keypoints_2d":[x,y,c]*K,..}]}') from exc
-    for i, pose in enumerate(people):
-        if pose.size != 3 * len(names):
-            raise ValueError(f"{path}: person {i} has {pose.size} pose_keypoints_2d values, expected "
-                             f"{3 * len(names)} ({len(names)} keypoints x 3) for {model}"
-                             f"{_count_hint(pose.size, model)}")
-    return to_body25(np.reshape(people, (-1, len(names), 3)), model)
+        people = doc["people"]
+        if not isinstance(people, list):
+            raise TypeError(f"people is {type(people).__name__}, not a list")
+    except (ValueError, KeyError, TypeError, UnicodeDecodeError) as exc:
+        raise KeypointsFileError(f"{path}: not an OpenPose keypoints JSON ({type(exc).__name__}: {exc}); "
+                                 'expected {"version":..,"people":[{"pose_keypoints_2d":[x,y,c]*K,..}]}'
+                                 ) from exc
+    poses = [_pose_values(path, i, person, model) for i, person in enumerate(people)]
+    return np.array([pose for pose in poses if pose is not None]).reshape(-1, len(names), 3)
+
+
+def read_keypoints_json(path: str | os.PathLike, model: str = "BODY_25") -> np.ndarray:
+    """People (P, 25, 3) in BODY_25 layout of one file of the declared model (`read_model_keypoints`)."""
+    return to_body25(read_model_keypoints(path, model), model)
 
 
 def layout_patterns(pattern: str | re.Pattern | None = None) -> dict[str, re.Pattern]:
@@ -165,20 +225,20 @@ def _matching_names(folder: Path, patterns: dict[str, re.Pattern]) -> tuple[re.P
     if not used:
         jsons = [name for name in names if name.lower().endswith(".json")] or names
         seen = f"found e.g. {jsons[0]!r} ({len(names)} files in all)" if names else "the folder is empty"
-        raise ValueError(f"{folder}: no per-frame keypoints files; expected names {_describe(patterns)}; "
-                         f"{seen}")
+        raise KeypointsFileError(f"{folder}: no per-frame keypoints files; expected names "
+                                 f"{_describe(patterns)}; {seen}")
     if len(used) > 1:
         examples = ", ".join(f"{layout}: e.g. {found[layout][0]!r}" for layout in used)
-        raise ValueError(f"{folder}: per-frame files of {len(used)} layouts mixed ({examples}); "
-                         "keep one layout per folder or declare the pattern")
+        raise KeypointsFileError(f"{folder}: per-frame files of {len(used)} layouts mixed ({examples}); "
+                                 "keep one layout per folder or declare the pattern")
     return patterns[used[0]], found[used[0]]
 
 
 def _frame_number(path: Path, pattern: re.Pattern) -> int:
     number = pattern.fullmatch(path.name).group(1)
     if number is None or not number.isdigit():
-        raise ValueError(f"{path}: the group of file pattern {pattern.pattern!r} holds {number!r}, "
-                         "expected the frame number (digits)")
+        raise KeypointsFileError(f"{path}: the group of file pattern {pattern.pattern!r} holds {number!r}, "
+                                 "expected the frame number (digits)")
     return int(number)
 
 
@@ -191,7 +251,7 @@ def list_frame_files(folder: str | os.PathLike,
     """
     folder = Path(folder)
     if not folder.is_dir():
-        raise ValueError(f"{folder}: not a folder (expected one of per-frame keypoints JSON files)")
+        raise KeypointsFileError(f"{folder}: not a folder (expected one of per-frame keypoints JSON files)")
     matched, names = _matching_names(folder, layout_patterns(pattern))
     entries = sorted((_frame_number(folder / name, matched), folder / name) for name in names)
     frames = np.array([frame for frame, _ in entries])
@@ -199,26 +259,144 @@ def list_frame_files(folder: str | os.PathLike,
     if (steps == 0).any():
         frame = frames[np.argmax(steps == 0)]
         same = ", ".join(path.name for f, path in entries if f == frame)
-        raise ValueError(f"{folder}: frame {frame} has more than one file ({same}); expected one per frame")
+        raise KeypointsFileError(f"{folder}: frame {frame} has more than one file ({same}); expected one "
+                                 "per frame")
     if (steps > 1).any():
         k = np.argmax(steps > 1)
-        raise ValueError(f"{folder}: frame {frames[k] + 1} missing (files of frames {frames[k]} then "
-                         f"{frames[k + 1]}); expected every frame from {frames[0]} to {frames[-1]}")
+        raise KeypointsFileError(f"{folder}: frame {frames[k] + 1} missing (files of frames {frames[k]} then "
+                                 f"{frames[k + 1]}); expected every frame from {frames[0]} to {frames[-1]}")
     return entries
 
 
+SHOWN = 5  # files an error names, of many
+
+
+def _name_of_frame(example: Path, pattern: re.Pattern, frame: int) -> str:
+    """The file name frame would have, following an existing file's (zero-padded if its number is)."""
+    match = pattern.fullmatch(example.name)
+    start, end = match.span(1)
+    digits = match.group(1)
+    number = f"{frame:0{len(digits)}d}" if digits.startswith("0") and len(digits) > 1 else str(frame)
+    return example.name[:start] + number + example.name[end:]
+
+
+def _listed(names: list[str], count: int) -> str:
+    """The first few of count names, and how many more."""
+    return ", ".join(names) + (f" and {count - len(names)} more" if count > len(names) else "")
+
+
+def check_frame_count(folder: str | os.PathLike, entries: list[tuple[int, Path]], n_frames: int,
+                      pattern: str | re.Pattern | None = None) -> None:
+    """An error naming the extra and missing files (the first few of each) and both counts unless the
+    entries (`list_frame_files`) are frames 0..n_frames-1, one file per frame of the video."""
+    frames = [frame for frame, _ in entries]
+    if frames == list(range(n_frames)):
+        return
+    extra = [path.name for frame, path in entries if frame >= n_frames]
+    missing = np.setdiff1d(np.arange(n_frames), frames)
+    pattern = next(p for p in layout_patterns(pattern).values() if p.fullmatch(entries[0][1].name))
+    named = [_name_of_frame(entries[0][1], pattern, int(frame)) for frame in missing[:SHOWN]]
+    told = [f"{len(extra)} extra: {_listed(extra[:SHOWN], len(extra))}"] if extra else []
+    told += [f"{len(missing)} missing: {_listed(named, len(missing))}"] if len(missing) else []
+    raise KeypointsFileError(f"{folder}: {len(entries)} keypoints files (frames {frames[0]}..{frames[-1]}) "
+                             f"for a video of {n_frames} frames; expected frames 0..{n_frames - 1}, one file "
+                             f"per frame; {'; '.join(told)}")
+
+
 def read_keypoints_folder(folder: str | os.PathLike, model: str = "BODY_25",
-                          pattern: str | re.Pattern | None = None) -> tuple[np.ndarray, np.ndarray]:
+                          pattern: str | re.Pattern | None = None,
+                          n_frames: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Frame numbers (F,) and keypoints (F, P_max, 25, 3), BODY_25 layout, of a folder's per-frame files.
 
-    Frames in the order of their numbers (`list_frame_files`); people are padded with zeros
-    (confidence 0 = absent) to the largest count in any frame, in file order.
+    Frames in the order of their numbers (`list_frame_files`); with n_frames (the video's frame count)
+    they must be 0..n_frames-1 (`check_frame_count`). People are padded with zeros (confidence 0 =
+    absent) to the largest count in any frame, in file order. The declared model must be the most
+    plausible of those with as many keypoints (`check_declared_model`).
     """
     entries = list_frame_files(folder, pattern)
+    if n_frames is not None:
+        check_frame_count(folder, entries, n_frames, pattern)
     frames = np.array([frame for frame, _ in entries], np.int64)
-    per_frame = [read_keypoints_json(path, model) for _, path in entries]
+    per_frame = [read_model_keypoints(path, model) for _, path in entries]
     most = max((len(people) for people in per_frame), default=0)
-    out = np.zeros((len(entries), most, N_JOINTS, 3))
+    raw = np.zeros((len(entries), most, len(KEYPOINT_MODELS[model]), 3))
     for i, people in enumerate(per_frame):
-        out[i, :len(people)] = people
-    return frames, out
+        raw[i, :len(people)] = people
+    check_declared_model(raw, model, [path for _, path in entries])
+    return frames, to_body25(raw, model)
+
+
+# The declared model's plausibility. BODY_25 and BODY_25B files both hold 75 values a person, so only the
+# content tells them apart: the same points joined by the declared model's bones make a short skeleton
+# (bones join neighbouring points), by another model's bones a long one (a "knee-ankle" bone from a knee
+# to an eye). Bone lengths do not depend on which way a person faces, lies or bends, where the order of
+# joints up the image or the left/right symmetry (projected limbs foreshorten unequally) would.
+# Bones by BODY_25 names, none to Neck or MidHip (midpoints in models that lack them, see MIDPOINTS).
+SKELETON = (("Nose", "REye"), ("Nose", "LEye"), ("REye", "REar"), ("LEye", "LEar"),
+            ("RShoulder", "LShoulder"), ("RShoulder", "RElbow"), ("RElbow", "RWrist"),
+            ("LShoulder", "LElbow"), ("LElbow", "LWrist"), ("RShoulder", "RHip"), ("LShoulder", "LHip"),
+            ("RHip", "LHip"), ("RHip", "RKnee"), ("RKnee", "RAnkle"), ("LHip", "LKnee"), ("LKnee", "LAnkle"),
+            ("RAnkle", "RHeel"), ("RHeel", "RBigToe"), ("RBigToe", "RSmallToe"), ("LAnkle", "LHeel"),
+            ("LHeel", "LBigToe"), ("LBigToe", "LSmallToe"))
+MIN_BONES = 5  # detected bones a person needs to be compared
+MIN_PEOPLE = 10  # people a folder needs before its model is judged
+# The declared model is refused when another's skeleton is shorter for this share of the people, by this
+# median factor. On the tiny twin run's BODY_25 people (3 cameras, 12,000-13,500 people each) the wrong
+# reading, either way round, is shorter for 0-8 % of them and longer by 1.8-2.1x (median); on simulated
+# people lying, bending or crouching, for 0-1.3 % and by 1.8-2.8x (tests/test_openpose_io.py).
+MODEL_VOTE_SHARE = 0.8
+MODEL_RATIO = 1.25
+
+
+def _bones(model: str, other: str) -> list[tuple[int, int]]:
+    """BODY_25 indices of the SKELETON bones whose ends both models name."""
+    named = ({BODY25_NAME.get(n, n) for n in KEYPOINT_MODELS[model]}
+             & {BODY25_NAME.get(n, n) for n in KEYPOINT_MODELS[other]})
+    return [(BODY25.index(a), BODY25.index(b)) for a, b in SKELETON if a in named and b in named]
+
+
+def skeleton_lengths(raw: np.ndarray, model: str, bones: list[tuple[int, int]]) -> np.ndarray:
+    """(...) mean length of a person's detected bones (BODY_25 index pairs) when raw (..., K, 3) is read
+    as model, over the diagonal of the box around its detected points; NaN under MIN_BONES bones."""
+    body = to_body25(raw, model)
+    ends = body[..., [a for a, _ in bones], :], body[..., [b for _, b in bones], :]
+    seen = (ends[0][..., 2] > 0) & (ends[1][..., 2] > 0)
+    length = np.where(seen, np.linalg.norm(ends[0][..., :2] - ends[1][..., :2], axis=-1), 0.0)
+    points = np.where(raw[..., 2:] > 0, raw[..., :2], np.nan)
+    with warnings.catch_warnings():  # people with no detected point: all-NaN boxes, NaN results
+        warnings.simplefilter("ignore", RuntimeWarning)
+        diagonal = np.linalg.norm(np.nanmax(points, axis=-2) - np.nanmin(points, axis=-2), axis=-1)
+        mean = length.sum(axis=-1) / seen.sum(axis=-1)
+        return np.where((seen.sum(axis=-1) >= MIN_BONES) & (diagonal > 0), mean / diagonal, np.nan)
+
+
+def model_comparison(raw: np.ndarray, model: str, other: str) -> tuple[int, float, float, np.ndarray]:
+    """(people compared, share whose skeleton is shorter read as other, median factor by which it is,
+    (...) bool: each person's skeleton shorter by MODEL_RATIO read as other) of people raw (..., K, 3)."""
+    bones = _bones(model, other)
+    declared, alternative = skeleton_lengths(raw, model, bones), skeleton_lengths(raw, other, bones)
+    both = np.isfinite(declared) & np.isfinite(alternative)
+    ratio = declared[both] / alternative[both]
+    if not both.any():
+        return 0, 0.0, 1.0, both
+    strongly = np.zeros_like(both)
+    strongly[both] = ratio >= MODEL_RATIO
+    return int(both.sum()), float(np.mean(ratio > 1)), float(np.median(ratio)), strongly
+
+
+def check_declared_model(raw: np.ndarray, model: str, paths: list[Path]) -> None:
+    """An error naming a file and the likely model when people raw (F, P, K, 3), the files' (paths, one a
+    frame) in the declared model's order, are clearly less plausible as that model than as another model
+    of K keypoints (see SKELETON): over MIN_PEOPLE people at least, most shorter read as the other."""
+    for other in KEYPOINT_MODELS:
+        if other == model or len(KEYPOINT_MODELS[other]) != len(KEYPOINT_MODELS[model]):
+            continue
+        n, share, ratio, strongly = model_comparison(raw, model, other)
+        if n >= MIN_PEOPLE and share >= MODEL_VOTE_SHARE and ratio >= MODEL_RATIO:
+            example = paths[int(np.argmax(strongly.any(axis=1)))]
+            raise KeypointsFileError(
+                f"{example}: keypoints declared {model} look like {other}: read as {other}, the skeletons "
+                f"of {share:.0%} of the folder's {n} people are shorter (median {ratio:.2f}x) than read as "
+                f"{model}, whose bones join far-apart points; both models have "
+                f"{len(KEYPOINT_MODELS[model])} keypoints, so declare the model the files were made with "
+                f"({other} likely)")
