@@ -151,6 +151,10 @@ rule triangulation:
         cams=lambda wc: session_cameras(wc.session),
         max_reproj_share=PERCEPTION["max_reproj_share"],
         min_views=PERCEPTION["min_views"],
+        scene=PERCEPTION["scene"],
+        association_share=PERCEPTION["association_share"],
+        pose_gate_noise_factor=PERCEPTION["pose_gate_noise_factor"],
+        pose_confidence_weights=PERCEPTION["pose_confidence_weights"],
         code=code("triangulation"),
     log:
         "logs/triangulation/{session}.log",

@@ -1,28 +1,19 @@
-"""OpenPose people of one camera assigned to the two players, limb swaps undone, as a 2D pose table.
+"""OpenPose people of one camera followed from frame to frame, limb swaps undone, as a 2D pose table.
 
-Side assignment (`assign_sides`), in three steps:
-1. Where each person stands, from the calibrated camera: the ray through each of its core joints
-   (nose, neck, shoulders, hips, knees, ankles) meets the horizontal plane at that joint's typical
-   height for a player (TYPICAL_HEIGHTS); the median of these points is its floor position. Its
-   region cost for a side is the distance (m) from the area behind that table end where a player
-   stands (PLAYER_AREA_*); a bystander beside the table or far behind is outside both areas.
-2. Tracklets: every person (bystanders too) is followed from frame to frame by
-   scipy.optimize.linear_sum_assignment on the distance between a detection's joints and each
-   track's last joints (the nearer of the same joint and its mirror, so limb swaps do not break a
-   track), in torso lengths, within a gate that widens while a track is unseen (TRACK_*).
-3. Sides: per side, the tracklets that typically stand within REGION_MARGIN_M of its area compete;
-   the set of tracklets that never overlap in time with the largest total weight (frames in the
-   area count 1, those outside less) is chosen by weighted interval scheduling. So an extra
-   person near an area loses to the player who is there at the same time, for the whole of its
-   tracklet, including frames where the player is not detected; people far from both areas are
-   never assigned. A person who stands near a player's area only while that player is away
-   cannot be told from the player by geometry and is assigned.
+Which person is which player (or subject) is decided later, across cameras, by geometry
+(`perception.association`): this stage keeps every person it sees, bystanders too.
+
+Tracklets (`link_tracklets`): every person is followed from frame to frame by
+scipy.optimize.linear_sum_assignment on the distance between a detection's joints and each track's
+last joints (the nearer of the same joint and its mirror, so limb swaps do not break a track), in torso
+lengths measured in the image (`torso_pixels`), within a gate that widens while a track is unseen
+(TRACK_*). The table's `person` column is the tracklet id, unique within the camera.
 
 Left/right limb swaps (`fix_limb_swaps`): OpenPose now and then reports a whole arm, leg or foot on
 the wrong side for a frame. Each limb of each frame is compared with the raw limbs of the two frames
-before and after: a swapped limb lies closer to the opposite side's joints of its neighbours.
-The limb is swapped back when most neighbours say so. Deciding from the raw neighbours (not the
-corrected previous frame) keeps one wrong decision from spreading along the track; swaps that
+before and after on the same tracklet: a swapped limb lies closer to the opposite side's joints of its
+neighbours. The limb is swapped back when most neighbours say so. Deciding from the raw neighbours (not
+the corrected previous frame) keeps one wrong decision from spreading along the track; swaps that
 last many frames look continuous in 2D and are left to the multi-view 3D stage.
 """
 
@@ -33,26 +24,16 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import linear_sum_assignment
 
-from pingpong.common.camera import Camera
-from pingpong.frames import BODY25, MODEL_JOINT_IDS, TABLE_HALF_LENGTH
+from pingpong.frames import BODY25, MODEL_JOINT_IDS
 from pingpong.io.openpose_json import read_keypoints_folder
 from pingpong.perception.schemas import MODEL_JOINT_COLUMNS
 
-PLAYERS = ("near", "far")  # index 0: the player at +y, 1: at -y
-PLAYER_SIGNS = (1.0, -1.0)
 MIN_CONFIDENCE = 0.3  # config perception.pose_min_confidence: joints below are gaps
 
 J = {name: i for i, name in enumerate(BODY25)}
-# Table-frame height (m) of core joints of an adult in the ready stance (table top z = 0, floor -0.76).
-TYPICAL_HEIGHTS = {J["Nose"]: 0.65, J["Neck"]: 0.5, J["RShoulder"]: 0.5, J["LShoulder"]: 0.5,
-                   J["MidHip"]: 0.05, J["RHip"]: 0.05, J["LHip"]: 0.05, J["RKnee"]: -0.35,
-                   J["LKnee"]: -0.35, J["RAnkle"]: -0.68, J["LAnkle"]: -0.68}
-# Where a player stands (m, table frame): |x| below the half width, |y| between the two bounds
-# on their side. Bystanders stand beside the table, |x| >= 1.56 m, |y| <= 1.37 m.
-PLAYER_AREA_HALF_WIDTH = 1.5
-PLAYER_AREA_Y = (TABLE_HALF_LENGTH, TABLE_HALF_LENGTH + 3.0)
-REGION_MARGIN_M = 0.3  # a tracklet typically further than this from a side's area is never that player
-TORSO_M = 0.5  # neck to mid-hip, sets the pixel scale of a track
+# Pairs of joints a torso length apart (neck to mid-hip, each shoulder to its hip): a person's pixel scale.
+TORSO_PAIRS = ((J["Neck"], J["MidHip"]), (J["RShoulder"], J["RHip"]), (J["LShoulder"], J["LHip"]))
+TORSO_PER_HEIGHT = 0.3  # a torso is about this share of the height of a standing person's detected joints
 TRACK_GATE = 0.5  # torso lengths a person's joints may move in one frame
 TRACK_GATE_PER_FRAME = 0.1  # and more per frame since the track was last seen,
 TRACK_GATE_MAX = 1.5  # up to this
@@ -66,44 +47,17 @@ LIMBS = (((J["RShoulder"], J["RElbow"], J["RWrist"]), (J["LShoulder"], J["LElbow
 SWAP_NEIGHBOURS = (-2, -1, 1, 2)  # frames compared with to detect a swapped limb
 
 
-
-def floor_positions(keypoints: np.ndarray, camera: Camera) -> np.ndarray:
-    """(F, P, 2) table-frame (x, y) where each detected person stands (NaN when none of its core
-    joints is detected or their rays miss the planes of their typical heights)."""
-    joints = np.array(list(TYPICAL_HEIGHTS))
-    heights = np.array(list(TYPICAL_HEIGHTS.values()))
-    core = keypoints[..., joints, :]  # (F, P, J, 3)
-    pixels = camera.undistort_pixels(core[..., :2].reshape(-1, 2))
-    rays = np.column_stack([pixels, np.ones(len(pixels))]) @ np.linalg.inv(camera.K).T @ camera.R
-    rays = rays.reshape(*core.shape[:-1], 3)
-    centre = camera.center
-    with np.errstate(divide="ignore", invalid="ignore"):
-        reach = (heights - centre[2]) / rays[..., 2]  # ray parameter at the joint's plane
-    points = centre[:2] + reach[..., None] * rays[..., :2]
-    valid = (core[..., 2] > 0) & (reach > 0)
-    points[~valid] = np.nan
-    out = np.full((*keypoints.shape[:2], 2), np.nan)
-    seen = valid.any(axis=-1)
-    out[seen] = np.nanmedian(points[seen], axis=-2)
-    return out
-
-
-def region_costs(floor_xy: np.ndarray) -> np.ndarray:
-    """(..., 2) distance (m) of floor positions (..., 2) from the near and far players' areas; inf if NaN."""
-    dx = np.maximum(np.abs(floor_xy[..., 0]) - PLAYER_AREA_HALF_WIDTH, 0.0)
-    costs = []
-    for sign in PLAYER_SIGNS:
-        y = sign * floor_xy[..., 1]
-        dy = np.maximum(PLAYER_AREA_Y[0] - y, 0.0) + np.maximum(y - PLAYER_AREA_Y[1], 0.0)
-        costs.append(np.hypot(dx, dy))
-    return np.nan_to_num(np.stack(costs, axis=-1), nan=np.inf)
-
-
-def torso_pixels(floor_xy: np.ndarray, camera: Camera) -> np.ndarray:
-    """Expected pixel length of a torso at floor positions (..., 2): focal length * TORSO_M / depth."""
-    neck = np.concatenate([floor_xy, np.full((*floor_xy.shape[:-1], 1), TYPICAL_HEIGHTS[J["Neck"]])], -1)
-    depth = camera.depth(neck.reshape(-1, 3)).reshape(floor_xy.shape[:-1])
-    return camera.K[0, 0] * TORSO_M / np.maximum(depth, 0.1)
+def torso_pixels(keypoints: np.ndarray) -> np.ndarray:
+    """(F, P) a torso's pixel length for each detection (F, P, 25, 3): the median of its measured torso
+    pairs, else TORSO_PER_HEIGHT of its detected joints' height, else the median of all; 1 if none."""
+    xy = np.where(keypoints[..., 2:] > 0, keypoints[..., :2], np.nan)
+    pairs = np.stack([np.linalg.norm(xy[..., a, :] - xy[..., b, :], axis=-1) for a, b in TORSO_PAIRS], -1)
+    scale = nanmedian_last(np.where(pairs > 0, pairs, np.nan))
+    with np.errstate(invalid="ignore"):
+        height = np.fmax.reduce(xy[..., 1], axis=-1) - np.fmin.reduce(xy[..., 1], axis=-1)
+    scale = np.where(np.isfinite(scale), scale, np.where(height > 0, TORSO_PER_HEIGHT * height, np.nan))
+    known = np.isfinite(scale)
+    return np.where(known, scale, np.median(scale[known]) if known.any() else 1.0)
 
 
 def nanmedian_last(values: np.ndarray) -> np.ndarray:
@@ -123,8 +77,8 @@ def link_tracklets(keypoints: np.ndarray, scales: np.ndarray) -> np.ndarray:
     bystander's own track for the bystander's detections (and loses) instead of taking them over
     while the player is unseen. A track keeps each joint's last pixel position; a detection's
     distance to it is the median over shared joints of the distance to the same joint or its
-    mirror (so a limb swap costs nothing), in torso lengths: scales (F, P), a torso's pixel length
-    where each person stands, linear_sum_assignment matches detections to tracks within a gate.
+    mirror (so a limb swap costs nothing), in torso lengths: scales (F, P), each detection's torso
+    length in pixels (torso_pixels); linear_sum_assignment matches detections to tracks within a gate.
     """
     present = (keypoints[..., 2] > 0).any(axis=-1)
     xy = np.where(keypoints[..., 2:] > 0, keypoints[..., :2], np.nan)
@@ -157,56 +111,43 @@ def link_tracklets(keypoints: np.ndarray, scales: np.ndarray) -> np.ndarray:
     return ids
 
 
-def best_tracklets(first: np.ndarray, last: np.ndarray, weight: np.ndarray) -> np.ndarray:
-    """Indices of the tracklets, no two overlapping in time (frames first..last), of the largest total
-    weight: weighted interval scheduling by dynamic programming."""
-    order = np.argsort(last, kind="stable")
-    first, last, weight = first[order], last[order], weight[order]
-    before = np.searchsorted(last, first, side="left")  # tracklets [0, before) end before each starts
-    best = np.zeros(len(order) + 1)
-    for i in range(len(order)):
-        best[i + 1] = max(best[i], weight[i] + best[before[i]])
-    chosen, i = [], len(order)
-    while i > 0:
-        if weight[i - 1] + best[before[i - 1]] > best[i - 1]:
-            chosen.append(order[i - 1])
-            i = before[i - 1]
-        else:
-            i -= 1
-    return np.array(chosen[::-1], int)
-
-
-def assign_sides(keypoints: np.ndarray, camera: Camera) -> np.ndarray:
-    """(F, 2, 25, 3) people of each frame assigned to ('near', 'far'); zeros where a player is not seen.
-
-    keypoints: (F, P, 25, 3) [x px, y px, confidence] in any person order, zero-padded.
-    """
-    keypoints = np.asarray(keypoints, float)
-    out = np.zeros((len(keypoints), 2, 25, 3))
-    if keypoints.shape[1] == 0:
-        return out
-    floor_xy = floor_positions(keypoints, camera)
-    regions = region_costs(floor_xy)  # (F, P, 2)
-    scales = torso_pixels(floor_xy, camera)
-    scales = np.where(np.isfinite(scales), scales, np.nanmedian(scales) if np.isfinite(scales).any() else 1.0)
-    ids = link_tracklets(keypoints, scales)
-    n_tracklets = ids.max() + 1
+def tracklet_lanes(ids: np.ndarray) -> np.ndarray:
+    """(F, P) lane of every detection (-1 where none), lanes being few: tracklets (ids (F, P)) share a
+    lane when they never overlap in time and lie more than max(SWAP_NEIGHBOURS) frames apart, so a
+    lane's neighbouring frames hold the same person (fix_limb_swaps compares with them)."""
+    lanes = np.full(ids.shape, -1)
     frame_of, person_of = np.nonzero(ids >= 0)
     tracklet = ids[frame_of, person_of]
-    first = np.full(n_tracklets, len(keypoints))
-    last = np.zeros(n_tracklets, int)
+    if len(tracklet) == 0:
+        return lanes
+    first = np.full(tracklet.max() + 1, len(ids))
+    last = np.full(tracklet.max() + 1, -1)
     np.minimum.at(first, tracklet, frame_of)
     np.maximum.at(last, tracklet, frame_of)
-    for side in range(2):
-        region = regions[frame_of, person_of, side]
-        typical = pd.Series(region).groupby(tracklet).median().reindex(range(n_tracklets)).to_numpy()
-        # each frame counts fully inside the area, less the further out it stands
-        weight = np.bincount(tracklet, np.clip(1 - region / REGION_MARGIN_M, 0, 1), n_tracklets)
-        candidates = np.flatnonzero(typical <= REGION_MARGIN_M)
-        for k in candidates[best_tracklets(first[candidates], last[candidates], weight[candidates])]:
-            mine = tracklet == k
-            out[frame_of[mine], side] = keypoints[frame_of[mine], person_of[mine]]
-    return out
+    lane_end, lane_of = [], np.full(len(first), -1)
+    for k in np.argsort(first, kind="stable"):
+        free = [lane for lane, end in enumerate(lane_end) if first[k] - end > max(SWAP_NEIGHBOURS)]
+        lane = free[0] if free else len(lane_end)
+        lane_end[lane:lane + 1] = [last[k]]
+        lane_of[k] = lane
+    lanes[frame_of, person_of] = lane_of[tracklet]
+    return lanes
+
+
+def tracked_people(keypoints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every detected person of keypoints (F, P, 25, 3) followed over time, limb swaps undone.
+
+    Returns people (F, L, 25, 3) and their tracklet ids (F, L), -1 (and zeros) where a lane is empty."""
+    keypoints = np.asarray(keypoints, float)
+    ids = link_tracklets(keypoints, torso_pixels(keypoints))
+    lanes = tracklet_lanes(ids)
+    n_lanes = lanes.max() + 1
+    people = np.zeros((len(keypoints), n_lanes, 25, 3))
+    track = np.full((len(keypoints), n_lanes), -1)
+    f, p = np.nonzero(lanes >= 0)
+    people[f, lanes[f, p]] = keypoints[f, p]
+    track[f, lanes[f, p]] = ids[f, p]
+    return fix_limb_swaps(people), track
 
 
 def fix_limb_swaps(players: np.ndarray) -> np.ndarray:
@@ -245,16 +186,16 @@ def model_joints(players: np.ndarray, min_confidence: float = MIN_CONFIDENCE) ->
     return joints
 
 
-def pose2d_table(folder: str | os.PathLike, camera: Camera, time_ns: np.ndarray,
-                 min_confidence: float = MIN_CONFIDENCE, model: str = "BODY_25",
-                 pattern: str | re.Pattern | None = None) -> pd.DataFrame:
-    """Both players' model joints from one camera's OpenPose folder, one row per (frame, player).
+def pose2d_table(folder: str | os.PathLike, time_ns: np.ndarray, min_confidence: float = MIN_CONFIDENCE,
+                 model: str = "BODY_25", pattern: str | re.Pattern | None = None) -> pd.DataFrame:
+    """Every person's model joints from one camera's OpenPose folder, one row per (frame, person).
 
     time_ns (F,): the camera's frame times; the folder must hold frames 0..F-1, files named by
     pattern (`openpose_json.layout_patterns`: any known layout by default) holding keypoints of the
     declared model (`openpose_json.KEYPOINT_MODELS`), mapped by name to BODY_25. Columns: time_ns,
-    player ('near'/'far'), and per model joint j (BODY_25 index): j{j:02d}_u, _v (distorted pixels)
-    and _conf (OpenPose's confidence, 0 where not detected); gaps have u, v NaN.
+    person (the tracklet id, -1 on the one row of a frame with nobody), and per model joint j (BODY_25
+    index): j{j:02d}_u, _v (distorted pixels) and _conf (OpenPose's confidence, 0 where not detected);
+    gaps have u, v NaN. Rows are ordered by time, then person.
     """
     time_ns = np.asarray(time_ns, np.int64)
     frames, keypoints = read_keypoints_folder(folder, model, pattern)
@@ -263,9 +204,16 @@ def pose2d_table(folder: str | os.PathLike, camera: Camera, time_ns: np.ndarray,
         raise ValueError(f"{folder}: OpenPose frames {frames[:1].tolist()}..{frames[-1:].tolist()} "
                          f"({len(frames)} files), expected frames 0..{len(time_ns) - 1} for the camera's "
                          f"{len(time_ns)} frame times; missing {missing[:5].tolist()}")
-    joints = model_joints(fix_limb_swaps(assign_sides(keypoints, camera)), min_confidence)  # (F, 2, 8, 3)
-    rows = joints.transpose(1, 0, 2, 3).reshape(2 * len(time_ns), -1)
-    table = pd.DataFrame(rows, columns=list(MODEL_JOINT_COLUMNS))
-    table.insert(0, "player", np.repeat(PLAYERS, len(time_ns)))
-    table.insert(0, "time_ns", np.tile(time_ns, 2))
+    people, track = tracked_people(keypoints)
+    joints = model_joints(people, min_confidence)  # (F, L, 8, 3)
+    f, lane = np.nonzero(track >= 0)
+    empty = np.flatnonzero((track < 0).all(axis=1))  # a row of gaps keeps such a frame on the clock
+    frame = np.concatenate([f, empty])
+    person = np.concatenate([track[f, lane], np.full(len(empty), -1)])
+    gaps = model_joints(np.zeros((len(empty), 1, 25, 3)))[:, 0]
+    rows = np.concatenate([joints[f, lane], gaps]).reshape(len(frame), -1)
+    order = np.lexsort((person, frame))
+    table = pd.DataFrame(rows[order], columns=list(MODEL_JOINT_COLUMNS))
+    table.insert(0, "person", person[order])
+    table.insert(0, "time_ns", time_ns[frame[order]])
     return table

@@ -1,4 +1,5 @@
-"""Multi-view triangulation of ball centres and body joints, vectorised over all points.
+"""Multi-view triangulation of ball centres and body joints, vectorised over all points (the pose's
+assembly from people matched across views is perception.pose3d).
 
 Points are triangulated by the linear DLT on undistorted pixels, as one batched SVD over all
 points (OpenCV's cv2.triangulatePoints solves the same system but only for two views and,
@@ -12,24 +13,28 @@ import numpy as np
 import pandas as pd
 
 from pingpong.common.camera import Camera
-from pingpong.frames import MODEL_JOINT_IDS
 
 
-def triangulate_dlt(P: np.ndarray, pixels: np.ndarray, mask: np.ndarray) -> np.ndarray:
+def triangulate_dlt(P: np.ndarray, pixels: np.ndarray, mask: np.ndarray, weights=None) -> np.ndarray:
     """World points (N, 3) from projection matrices P (C, 3, 4) and undistorted pixels (N, C, 2).
 
     mask (N, C) says which views to use; a point with fewer than two is NaN. Each used view
     contributes the rows u * P[2] - P[0] and v * P[2] - P[1] of the homogeneous system A X = 0
-    (the rows of unused views are zeroed, which leaves the solution unchanged), and X is the
+    (the rows of unused views are zeroed, which leaves the solution unchanged), scaled by its weight
+    (N, C) when given (e.g. the keypoint's confidence, as Pose2Sim weights its DLT), and X is the
     right singular vector of the smallest singular value.
     """
     P = np.asarray(P, float)
     px = np.asarray(pixels, float)
     mask = np.asarray(mask, bool) & np.isfinite(px).all(axis=-1)
-    n_points, n_cams = mask.shape
     px = np.where(mask[..., None], px, 0.0)
     rows = px[..., None] * P[None, :, 2:3, :] - P[None, :, 0:2, :]  # (N, C, 2, 4)
-    A = (rows * mask[..., None, None]).reshape(n_points, 2 * n_cams, 4)
+    if weights is not None:  # a view of weight 0 is no view
+        weights = np.nan_to_num(np.asarray(weights, float))
+        mask = mask & (weights > 0)
+    n_points, n_cams = mask.shape
+    scale = mask if weights is None else mask * weights
+    A = (rows * scale[..., None, None]).reshape(n_points, 2 * n_cams, 4)
     _, _, vh = np.linalg.svd(A, full_matrices=False)
     X = vh[:, -1, :]
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -59,7 +64,7 @@ def reprojection_gate_px(cameras: list[Camera], share_of_diagonal: float) -> np.
 
 
 def triangulate_robust(
-    cameras: list[Camera], pixels_distorted: np.ndarray, max_reproj_px, min_views: int = 2
+    cameras: list[Camera], pixels_distorted: np.ndarray, max_reproj_px, min_views: int = 2, confidence=None
 ) -> dict[str, np.ndarray]:
     """Triangulate points (N, 3) seen in distorted pixels (N, C, 2), NaN where a camera missed them.
 
@@ -68,7 +73,7 @@ def triangulate_robust(
     one per camera (C,), see reprojection_gate_px), the lowest RMS among subsets of that size, so
     one bad view is dropped rather than pulling the point off. Points with no such subset are NaN
     with n_views 0. Loops over the (at most 2^C) subsets, never over points. For joints pass
-    N = frames * joints.
+    N = frames * joints. confidence (N, C), when given, weights each view's DLT rows (triangulate_dlt).
 
     Returns points (N, 3) in the cameras' world frame, n_views (N,), reproj_rms_px (N,) over
     the used views, and used_mask (N, C).
@@ -97,7 +102,9 @@ def triangulate_robust(
             idx = np.flatnonzero(unresolved & seen[:, views].all(axis=1))
             if len(idx) == 0:
                 continue
-            candidate = triangulate_dlt(P[views], undistorted[idx][:, views], np.ones((len(idx), size), bool))
+            weights = None if confidence is None else np.asarray(confidence, float)[idx][:, views]
+            candidate = triangulate_dlt(P[views], undistorted[idx][:, views], np.ones((len(idx), size), bool),
+                                        weights)
             err = reprojection_errors([cameras[c] for c in views], candidate, px[idx][:, views])
             candidate_rms = np.sqrt(np.mean(err**2, axis=1))
             better = (err <= gate[views]).all(axis=1) & (candidate_rms < best_rms[idx])
@@ -111,6 +118,18 @@ def triangulate_robust(
     return {"points": points, "n_views": used.sum(axis=1), "reproj_rms_px": rms, "used_mask": used}
 
 
+def pose_gate_px(cameras: list[Camera], errors: np.ndarray, used: np.ndarray, share_of_diagonal: float,
+                 noise_factor: float) -> np.ndarray:
+    """Each camera's keypoint gate (C,) px: its share-of-diagonal gate (reprojection_gate_px), widened to
+    noise_factor times the camera's median reprojection error (errors (N, C)) in an all-view fit of
+    points with >= 3 used views (used (N, C); a 2-view fit splits its error between the views), so that
+    real OpenPose noise (views 7-24 px apart at 1088x1920) keeps every view, where the twin's
+    (about 1 px at 480x360) keeps the diagonal gate."""
+    base = reprojection_gate_px(cameras, share_of_diagonal)
+    many = used.sum(axis=1) >= 3
+    noise = np.array([np.median(errors[many & used[:, c], c]) if (many & used[:, c]).any() else 0.0
+                      for c in range(len(cameras))])
+    return np.fmax(base, noise_factor * noise)
 
 
 def _aligned_times(tables: list[pd.DataFrame]) -> np.ndarray:
@@ -131,24 +150,3 @@ def ball3d_table(cameras: list[Camera], detections: list[pd.DataFrame], max_repr
     tri = triangulate_robust(cameras, px, max_reproj_px, min_views)
     return pd.DataFrame({"time_ns": times, **dict(zip("xyz", tri["points"].T, strict=True)),
                          "n_views": tri["n_views"], "reproj_rms_px": tri["reproj_rms_px"]})
-
-
-def pose3d_table(cameras: list[Camera], poses2d: list[pd.DataFrame], max_reproj_px,
-                 min_views: int = 2) -> pd.DataFrame:
-    """Both players' 8 model joints in 3D per frame; a joint seen well by < min_views cameras is NaN."""
-    parts = []
-    for player in ("near", "far"):
-        views = [p[p["player"] == player] for p in poses2d]
-        times = _aligned_times(views)
-        n_joints = len(MODEL_JOINT_IDS)
-        px = np.stack([np.stack([v[[f"j{j:02d}_u", f"j{j:02d}_v"]].to_numpy() for j in MODEL_JOINT_IDS],
-                                axis=1) for v in views], axis=2)  # (F, 8, C, 2)
-        tri = triangulate_robust(cameras, px.reshape(-1, len(cameras), 2), max_reproj_px, min_views)
-        points = tri["points"].reshape(len(times), n_joints, 3)
-        n_views = tri["n_views"].reshape(len(times), n_joints)
-        cols = {}
-        for k, j in enumerate(MODEL_JOINT_IDS):
-            cols |= {f"j{j:02d}_x": points[:, k, 0], f"j{j:02d}_y": points[:, k, 1],
-                     f"j{j:02d}_z": points[:, k, 2], f"j{j:02d}_n": n_views[:, k]}
-        parts.append(pd.DataFrame({"time_ns": times, "player": player, **cols}))
-    return pd.concat(parts, ignore_index=True)

@@ -3,9 +3,12 @@
 import logging
 
 from pingpong.common.artifacts import read_table, write_table
+from pingpong.perception.ball_flight import FlightRule, ball_verdict, drop_phantoms
 from pingpong.perception.calibration import load_cameras
+from pingpong.perception.pose3d import pose3d_table
+from pingpong.perception.scene import Scene
 from pingpong.perception.schemas import BALL3D, DETECTIONS, POSE2D, POSE3D
-from pingpong.perception.triangulation import ball3d_table, pose3d_table, reprojection_gate_px
+from pingpong.perception.triangulation import ball3d_table, reprojection_gate_px
 
 
 def main(ctx):
@@ -16,7 +19,29 @@ def main(ctx):
     gate = reprojection_gate_px(cameras, p["max_reproj_share"])
     ball = ball3d_table(cameras, [read_table(f, DETECTIONS) for f in ctx.input.detections], gate,
                         p["min_views"])
+    agreed = int(ball["x"].notna().sum())
+    ball, counts = drop_phantoms(ball, FlightRule.from_config(p["ball_flight"]))
     write_table(ball, ctx.output.ball3d, BALL3D, prov)
-    pose = pose3d_table(cameras, [read_table(f, POSE2D) for f in ctx.input.pose2d], gate, p["min_views"])
+    pose, report = pose3d_table(cameras, [read_table(f, POSE2D) for f in ctx.input.pose2d],
+                                Scene.from_config(p["scene"]), p["association_share"], p["max_reproj_share"],
+                                p["pose_gate_noise_factor"], p["pose_confidence_weights"], p["min_views"])
     write_table(pose, ctx.output.pose3d, POSE3D, prov)
-    logging.info("ball in 3D in %d of %d frames", ball["x"].notna().sum(), len(ball))
+    log_pose_report(report)
+    has_ball, verdict = ball_verdict(counts, len(ball))
+    logging.log(logging.INFO if has_ball else logging.WARNING,
+                "3D ball whose views agree in %d of %d frames; %s", agreed, len(ball), verdict)
+
+
+def log_pose_report(report: dict) -> None:
+    """The frames each camera gave each slot, as a table in the log, the gates and the DLT agreement."""
+    lines = ["camera | " + " | ".join(f"{slot} kept / with joints" for slot in report["slots"])]
+    for c, cam in enumerate(report["cameras"]):
+        lines.append(f"{cam} | " + " | ".join(f"{report['frames_kept'][c, s]} / {report['frames_used'][c, s]}"
+                                             for s in range(len(report["slots"]))))
+    lines.append("found (>= 2 cameras) | " + " | ".join(str(n) for n in report["frames_found"]))
+    logging.info("people per camera and slot, frames of %d:\n%s", report["frames"], "\n".join(lines))
+    logging.info("joint gates %s px; %.1f %% of fitted joints dropped a view",
+                 report["gate_px"].round(1).tolist(), 100 * report["views_dropped_share"])
+    if report["dlt_agreement_mm"] is not None:
+        logging.info("joints against a plain all-view DLT of the same views: median %.1f mm, p90 %.1f mm",
+                     *report["dlt_agreement_mm"])

@@ -1,0 +1,145 @@
+"""People matched across cameras by geometry (cf. Pose2Sim's person association).
+
+Per frame and slot of the scene (a player, or a subject), one person or none is chosen in each camera:
+among every combination of the cameras' people (at least two cameras), those whose views triangulate
+consistently (each view's median joint reprojection error within its camera's association gate, over
+at least MIN_JOINTS joints) compete; the most views win, then the smallest error. So a bystander seen
+by one camera only never agrees with the other views and is never used, and a person's split tracklet
+(one extra detection) costs no frame: nothing here follows tracklets. Players must stand near their
+area (the median of the fitted joints, table frame); subjects may be anywhere and keep their labels
+from frame to frame by continuity of their 3D position.
+"""
+
+from itertools import product
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import linear_sum_assignment
+
+from pingpong.common.camera import Camera
+from pingpong.frames import MODEL_JOINT_IDS
+from pingpong.perception.scene import Scene
+from pingpong.perception.triangulation import reprojection_errors, triangulate_dlt
+
+MIN_JOINTS = 3  # joints a view must share with the fit for its agreement to count
+NEW_LABEL_M = 1e3  # cost of starting a subject label afresh rather than continuing one (m)
+
+
+def people_arrays(table: pd.DataFrame, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One camera's POSE2D table as arrays on the clock times (F,): pixels (F, P, J, 2) (NaN gaps),
+    confidences (F, P, J) and person ids (F, P) (-1 where a frame has fewer people)."""
+    rows = table[table["person"] >= 0]
+    frame = np.searchsorted(times, rows["time_ns"].to_numpy())
+    slot = rows.groupby("time_ns").cumcount().to_numpy()
+    n_people = slot.max() + 1 if len(slot) else 0
+    n_joints = len(MODEL_JOINT_IDS)
+    px = np.full((len(times), n_people, n_joints, 2), np.nan)
+    conf = np.zeros((len(times), n_people, n_joints))
+    person = np.full((len(times), n_people), -1)
+    px[frame, slot] = np.stack([rows[[f"j{j:02d}_u", f"j{j:02d}_v"]].to_numpy() for j in MODEL_JOINT_IDS], 1)
+    conf[frame, slot] = rows[[f"j{j:02d}_conf" for j in MODEL_JOINT_IDS]].to_numpy()
+    person[frame, slot] = rows["person"].to_numpy()
+    return px, conf, person
+
+
+def _median_error(errors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per point and view, the median over joints (axis 1) of finite errors, and how many there were."""
+    count = np.isfinite(errors).sum(axis=1)
+    ordered = np.sort(np.where(np.isfinite(errors), errors, np.inf), axis=1)
+    low = np.take_along_axis(ordered, np.maximum(count - 1, 0)[:, None] // 2, axis=1)[:, 0]
+    high = np.take_along_axis(ordered, (count // 2)[:, None], axis=1)[:, 0] if ordered.shape[1] else low
+    return np.where(count > 0, (low + high) / 2, np.inf), count
+
+
+def combination_fits(cameras: list[Camera], px: list[np.ndarray], conf: list[np.ndarray],
+                     gate_px: np.ndarray) -> tuple[list[tuple], np.ndarray, np.ndarray, np.ndarray]:
+    """Every combination of one person or none per camera (>= 2 cameras) fitted in every frame.
+
+    px[c] (F, P_c, J, 2), conf[c] (F, P_c, J): camera c's people (people_arrays). Returns the
+    combinations (tuples of a person index or -1 per camera), and per combination and frame whether
+    its views agree (K, F), its mean error over gate (K, F; inf where they do not agree) and the median
+    of its fitted joints (K, F, 3)."""
+    n_frames = len(px[0])
+    P = np.stack([cam.P for cam in cameras])
+    undistorted = [cam.undistort_pixels(p.reshape(-1, 2)).reshape(p.shape) for cam, p in zip(cameras, px,
+                                                                                            strict=True)]
+    combos = [k for k in product(*[range(-1, p.shape[1]) for p in px]) if sum(i >= 0 for i in k) >= 2]
+    agree = np.zeros((len(combos), n_frames), bool)
+    error = np.full((len(combos), n_frames), np.inf)
+    centre = np.full((len(combos), n_frames, 3), np.nan)
+    for k, combo in enumerate(combos):
+        views = [c for c, i in enumerate(combo) if i >= 0]
+        present = np.all([np.isfinite(px[c][:, combo[c]]).any(axis=(-1, -2)) for c in views], axis=0)
+        frames = np.flatnonzero(present)
+        if len(frames) == 0:
+            continue
+        sub = np.stack([px[c][frames, combo[c]] for c in views], axis=2)  # (n, J, V, 2)
+        und = np.stack([undistorted[c][frames, combo[c]] for c in views], axis=2)
+        weight = np.stack([conf[c][frames, combo[c]] for c in views], axis=2)
+        n, n_joints, n_views = sub.shape[:3]
+        points = triangulate_dlt(P[views], und.reshape(-1, n_views, 2), np.isfinite(und).all(-1).reshape(
+            -1, n_views), weight.reshape(-1, n_views))
+        errors = reprojection_errors([cameras[c] for c in views], points, sub.reshape(-1, n_views, 2))
+        median, count = _median_error(errors.reshape(n, n_joints, n_views))
+        ratio = median / gate_px[views]
+        ok = ((ratio <= 1) & (count >= MIN_JOINTS)).all(axis=1)
+        agree[k, frames] = ok
+        error[k, frames[ok]] = ratio[ok].mean(axis=1)
+        with np.errstate(all="ignore"):
+            centre[k, frames] = np.nanmedian(points.reshape(n, n_joints, 3), axis=1)
+    return combos, agree, error, centre
+
+
+def associate(cameras: list[Camera], people: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
+              scene: Scene, gate_px: np.ndarray) -> np.ndarray:
+    """(F, S, C) the person index (into people_arrays' P axis) each camera gives each slot of the scene
+    per frame, -1 where none; a slot is filled by at least two cameras or by none.
+
+    people: people_arrays of each camera; gate_px (C,): the association gate per camera, px."""
+    combos, agree, error, centre = combination_fits(cameras, [p[0] for p in people], [p[1] for p in people],
+                                                    gate_px)
+    n_frames, n_cams = len(people[0][0]), len(cameras)
+    n_people = [p[0].shape[1] for p in people]
+    taken = [np.zeros((n_frames, max(n, 1)), bool) for n in n_people]
+    choice = np.full((n_frames, len(scene.slots), n_cams), -1)
+    if not combos:
+        return choice
+    n_views = np.array([sum(i >= 0 for i in k) for k in combos])[:, None]
+    rank = np.where(agree, n_views - np.minimum(error, 1.0) / 2, -np.inf)  # most views, then least error
+    areas = scene.area_costs(centre[..., :2]) if scene.mode == "players" else None
+    frames = np.arange(n_frames)
+    for s in range(len(scene.slots)):
+        score = rank.copy()
+        if areas is not None:
+            score[areas[..., s] > scene.area_margin_m] = -np.inf
+        for k, combo in enumerate(combos):
+            clash = np.any([taken[c][:, i] for c, i in enumerate(combo) if i >= 0], axis=0)
+            score[k, clash] = -np.inf
+        best = np.argmax(score, axis=0)
+        found = np.isfinite(score[best, frames])
+        choice[found, s] = np.array(combos)[best[found]]
+        for c in range(n_cams):
+            mine = found & (choice[:, s, c] >= 0)
+            taken[c][mine, choice[mine, s, c]] = True
+    if scene.mode == "subjects" and len(scene.slots) > 1:
+        choice = _stable_labels(choice, centre, combos)
+    return choice
+
+
+def _stable_labels(choice: np.ndarray, centre: np.ndarray, combos: list[tuple]) -> np.ndarray:
+    """choice (F, S, C) with each frame's subjects reordered to continue the labels of the frames before:
+    the Hungarian match of their 3D centres to each label's last centre (a new label is the first free)."""
+    index = {combo: k for k, combo in enumerate(combos)}
+    out = np.full_like(choice, -1)
+    last = np.full((choice.shape[1], 3), np.nan)
+    for f in range(len(choice)):
+        found = [s for s in range(choice.shape[1]) if (choice[f, s] >= 0).any()]
+        if not found:
+            continue
+        where = np.array([centre[index[tuple(choice[f, s])], f] for s in found])
+        cost = np.linalg.norm(where[:, None] - last[None], axis=-1)
+        cost = np.where(np.isfinite(cost), cost, NEW_LABEL_M + np.arange(len(last))[None])
+        rows, cols = linear_sum_assignment(cost)
+        out[f, cols] = choice[f, [found[r] for r in rows]]
+        last[cols] = where[rows]
+    return out

@@ -1,0 +1,113 @@
+"""The scene's people in 3D from every camera's 2D people: matched across views by geometry
+(`association`), then each joint by the subset search of `triangulate_robust` under a gate scaled by
+the image size and the keypoints' noise (`pose_gate_px`)."""
+
+import numpy as np
+import pandas as pd
+
+from pingpong.common.camera import Camera
+from pingpong.frames import MODEL_JOINT_IDS
+from pingpong.perception.association import associate, people_arrays
+from pingpong.perception.scene import Scene
+from pingpong.perception.triangulation import (
+    _aligned_times,
+    pose_gate_px,
+    reprojection_errors,
+    reprojection_gate_px,
+    triangulate_dlt,
+    triangulate_robust,
+)
+
+
+class PoseSceneError(ValueError):
+    """No joint of anyone in 3D: says what was seen and what the scene asked for."""
+
+
+def chosen_joints(people: list[tuple], choice: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pixels (F, S, J, C, 2) and confidences (F, S, J, C) of the people chosen per slot (choice (F, S, C)),
+    NaN and 0 where a camera gives a slot nobody."""
+    px, conf = [], []
+    frames = np.arange(len(choice))[:, None]
+    for c, (p, w, _) in enumerate(people):  # index -1 picks an appended empty person
+        pick = choice[..., c]
+        px.append(np.concatenate([p, np.full((len(p), 1, *p.shape[2:]), np.nan)], axis=1)[frames, pick])
+        conf.append(np.concatenate([w, np.zeros((len(w), 1, w.shape[2]))], axis=1)[frames, pick])
+    return np.stack(px, axis=3), np.stack(conf, axis=3)
+
+
+def pose3d_table(cameras: list[Camera], poses2d: list[pd.DataFrame], scene: Scene, association_share: float,
+                 gate_share: float, noise_factor: float, weighted: bool, min_views: int = 2
+                 ) -> tuple[pd.DataFrame, dict]:
+    """The scene's slots' 8 model joints in 3D per frame (rows: slot-major, then frame), and a report.
+
+    poses2d: each camera's POSE2D table (every person per frame). The association gate per camera is
+    association_share of its image diagonal. Each joint is fitted by triangulate_robust (weighted by
+    OpenPose's confidence if `weighted`) with the gate pose_gate_px(gate_share, noise_factor), which the
+    noise of an all-view fit widens. A joint seen well by < min_views cameras is NaN.
+    Raises PoseSceneError when no joint is found.
+    The report: per camera and slot the frames it gave the slot a person (`frames_kept`, (C, S)) and the
+    frames it gave at least one joint (`frames_used`), the gates, and the agreement of the joints with a
+    plain all-view DLT of the same people's views (`dlt_agreement_mm`: median, p90)."""
+    times = _aligned_times(poses2d)
+    people = [people_arrays(t, times) for t in poses2d]
+    choice = associate(cameras, people, scene, reprojection_gate_px(cameras, association_share))
+    px, conf = chosen_joints(people, choice)  # (F, S, J, C, ...)
+    flat_px = px.reshape(-1, len(cameras), 2)
+    flat_conf = conf.reshape(-1, len(cameras)) if weighted else None
+    everything = triangulate_robust(cameras, flat_px, np.inf, min_views, flat_conf)  # to gauge the noise
+    errors = reprojection_errors(cameras, everything["points"], flat_px)
+    gate = pose_gate_px(cameras, errors, everything["used_mask"], gate_share, noise_factor)
+    tri = triangulate_robust(cameras, flat_px, gate, min_views, flat_conf)
+    report = _report(cameras, scene, choice, tri, flat_px, gate)
+    n_frames, n_slots, n_joints = px.shape[:3]
+    points = tri["points"].reshape(n_frames, n_slots, n_joints, 3)
+    n_views = tri["n_views"].reshape(n_frames, n_slots, n_joints)
+    if not np.isfinite(points).any():
+        raise PoseSceneError(_why_empty(cameras, people, scene, choice, association_share))
+    parts = []
+    for s, slot in enumerate(scene.slots):
+        cols = {}
+        for k, j in enumerate(MODEL_JOINT_IDS):
+            cols |= {f"j{j:02d}_x": points[:, s, k, 0], f"j{j:02d}_y": points[:, s, k, 1],
+                     f"j{j:02d}_z": points[:, s, k, 2], f"j{j:02d}_n": n_views[:, s, k]}
+        parts.append(pd.DataFrame({"time_ns": times, "player": slot, **cols}))
+    return pd.concat(parts, ignore_index=True), report
+
+
+def _report(cameras: list[Camera], scene: Scene, choice: np.ndarray, tri: dict, flat_px: np.ndarray,
+            gate: np.ndarray) -> dict:
+    """What pose3d_table's docstring lists, from the association's choice and the joints' fit."""
+    n_frames, n_slots, n_cams = choice.shape
+    used = tri["used_mask"].reshape(n_frames, n_slots, -1, n_cams).any(axis=2)  # (F, S, C)
+    seen = np.isfinite(flat_px).all(axis=-1)
+    P = np.stack([cam.P for cam in cameras])
+    undistorted = np.full_like(flat_px, np.nan)
+    for c, cam in enumerate(cameras):
+        undistorted[seen[:, c], c] = cam.undistort_pixels(flat_px[seen[:, c], c])
+    plain = triangulate_dlt(P, undistorted, seen)  # every view of the chosen people, unweighted, none dropped
+    gap = 1e3 * np.linalg.norm(tri["points"] - plain, axis=1)
+    gap = gap[np.isfinite(gap)]
+    dropped = tri["n_views"] < seen.sum(axis=1)
+    fitted = np.isfinite(tri["points"]).all(axis=1)
+    return {"slots": list(scene.slots), "cameras": [c.name for c in cameras], "frames": n_frames,
+            "frames_kept": (choice >= 0).sum(axis=0).T, "frames_used": used.sum(axis=0).T,
+            "frames_found": ((choice >= 0).sum(axis=2) >= 2).sum(axis=0), "gate_px": gate,
+            "dlt_agreement_mm": (float(np.median(gap)), float(np.percentile(gap, 90))) if len(gap) else None,
+            "views_dropped_share": float(dropped[fitted].mean()) if fitted.any() else 0.0}
+
+
+def _why_empty(cameras: list[Camera], people: list[tuple], scene: Scene, choice: np.ndarray,
+               association_share: float) -> str:
+    """Why no joint was found: who the cameras saw and what the scene asked for."""
+    seen = ", ".join(f"{cam.name} {int((p[2] >= 0).any(axis=1).sum())}" for cam, p in zip(cameras, people,
+                                                                                           strict=True))
+    text = (f"no joint of anyone in 3D in {len(choice)} frames; frames with people per camera: {seen}; "
+            f"frames a slot was matched across >= 2 cameras: {int(((choice >= 0).sum(axis=2) >= 2).sum())}. ")
+    if scene.mode == "players":
+        text += (f"The scene is 'players': a person counts only within {scene.area_margin_m} m of a player's "
+                 f"area (|x| <= {scene.area_half_width_m} m, |y| in {list(scene.area_y_m)} m of the table "
+                 "frame). Is the calibration's world the table frame? A pose-only lab sets "
+                 "perception.scene.mode: subjects. ")
+    return text + (f"People agree across views within the association gate of {association_share} of each "
+                   "image diagonal (perception.association_share); check the calibration and that each "
+                   "camera's OpenPose folder is its own.")
