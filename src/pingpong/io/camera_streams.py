@@ -490,3 +490,22 @@ def camera_frame_times(path: str | os.PathLike, strict: bool = False,
     except McapDamagedError as err:
         raise CameraStreamError(str(err)) from err
     return _checked_times(path, times)
+
+
+def camera_frame_size(path: str | os.PathLike, strict: bool = False,
+                      timestamps: str | os.PathLike | None = None, start_ns: int = 0,
+                      topic: str | None = None) -> tuple[int, int]:
+    """(width, height) in pixels of a camera stream's images, from its first frame that decodes (any format
+    `open_camera_stream` reads; its arguments); an error naming the file when no frame decodes."""
+    path = Path(path)
+    _, frames = open_camera_stream(path, strict, timestamps, start_ns, topic)
+    first_reason = None
+    try:
+        for index, frame in enumerate(frames):
+            image, reason = frame.decode(1)
+            if image is not None:
+                return image.shape[1], image.shape[0]
+            first_reason = first_reason or f"frame {index}: {reason}"
+    finally:
+        frames.close()  # a video's container closes now, not when collected
+    raise CameraStreamError(f"{path}: no frame decodes ({first_reason}); expected images to size the stream")

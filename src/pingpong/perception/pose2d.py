@@ -198,12 +198,8 @@ def pose2d_table(folder: str | os.PathLike, time_ns: np.ndarray, min_confidence:
     gaps have u, v NaN. Rows are ordered by time, then person.
     """
     time_ns = np.asarray(time_ns, np.int64)
-    frames, keypoints = read_keypoints_folder(folder, model, pattern)
-    if not np.array_equal(frames, np.arange(len(time_ns))):
-        missing = np.setdiff1d(np.arange(len(time_ns)), frames)
-        raise ValueError(f"{folder}: OpenPose frames {frames[:1].tolist()}..{frames[-1:].tolist()} "
-                         f"({len(frames)} files), expected frames 0..{len(time_ns) - 1} for the camera's "
-                         f"{len(time_ns)} frame times; missing {missing[:5].tolist()}")
+    # one file per frame time: extra or missing files are named there
+    _, keypoints = read_keypoints_folder(folder, model, pattern, n_frames=len(time_ns))
     people, track = tracked_people(keypoints)
     joints = model_joints(people, min_confidence)  # (F, L, 8, 3)
     f, lane = np.nonzero(track >= 0)
