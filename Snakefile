@@ -28,12 +28,10 @@ include: "workflow/rules/common.smk"
 
 # The twin's rules write raw/; a lab's raw/ is only ever read, so under source: lab they do not exist and
 # whatever is missing there is an error before any job runs, never something to simulate.
+check_raw_layout()
 if config["source"] == "twin":
 
     include: "workflow/rules/twin.smk"
-
-else:
-    check_lab_layout()
 
 
 include: "workflow/rules/perception.smk"

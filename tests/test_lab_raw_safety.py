@@ -27,6 +27,11 @@ def lab_root(tiny_run, tmp_path):
     return root
 
 
+def said(proc) -> str:
+    """What Snakemake printed: an error while reading the workflow goes to stdout or stderr by the flags."""
+    return proc.stdout + proc.stderr
+
+
 def scheduled_rules(proc) -> set[str]:
     """The rules of a dry run's job table (`snakemake -n` prints 'rule  count' rows after 'job')."""
     lines = proc.stdout.splitlines()
@@ -48,10 +53,9 @@ def test_missing_openpose_and_calibration_view_stop_before_any_job(lab_root):
     before = raw_digest(lab_root)
     for args in (["-n"], []):
         proc = snakemake(lab_root, *args, check=False)
-        said = proc.stdout + proc.stderr  # Snakemake prints an error of the workflow's parsing to stdout
         assert proc.returncode != 0
-        assert "raw/sessions/s00/openpose/cam1/: missing or empty; expected the OpenPose-family JSON" in said
-        assert "raw/calibration/cam2/table.*: missing; expected the camera's view of the table" in said
+        assert "raw/sessions/s00/openpose/cam1/: missing or empty; expected the OpenPose-family" in said(proc)
+        assert "raw/calibration/cam2/table.*: missing; expected the camera's view of the table" in said(proc)
     assert raw_digest(lab_root) == before
     assert not (lab_root / "interim").exists() or not any((lab_root / "interim").rglob("*.parquet"))
     assert not (lab_root / "logs").exists()  # no job started
@@ -63,8 +67,8 @@ def test_cameras_named_as_the_files_do(lab_root):
     write_config(lab_root, {**LAB, "lab": {**LAB["lab"], "cameras": ["cam_01", "cam1", "cam2"]}})
     proc = snakemake(lab_root, "-n", check=False)
     assert proc.returncode != 0
-    assert "no session has a recording of ['cam_01']" in proc.stdout
-    assert "named ['cam0', 'cam1', 'cam2']: name the cameras as the files do" in proc.stdout
+    assert "no session has a recording of ['cam_01']" in said(proc)
+    assert "named ['cam0', 'cam1', 'cam2']: name the cameras as the files do" in said(proc)
     for old, new in (("cam0", "cam_01"), ("cam1", "Cam-B"), ("cam2", "c3")):
         (lab_root / f"raw/sessions/s00/{old}.mcap").rename(lab_root / f"raw/sessions/s00/{new}.mcap")
         (lab_root / f"raw/sessions/s00/openpose/{old}").rename(lab_root / f"raw/sessions/s00/openpose/{new}")
@@ -78,4 +82,15 @@ def test_cameras_named_as_the_files_do(lab_root):
 def test_unusable_camera_names_are_refused(lab_root, name):
     write_config(lab_root, {**LAB, "lab": {**LAB["lab"], "cameras": [name, "cam1", "cam2"]}})
     proc = snakemake(lab_root, "-n", check=False)
-    assert proc.returncode != 0 and f"lab.cameras: {name!r} is" in proc.stdout
+    assert proc.returncode != 0 and f"lab.cameras: {name!r} is" in said(proc)
+
+
+def test_the_default_source_refuses_to_simulate_over_a_labs_recordings(lab_root):
+    """source: twin is the default: a lab that forgets source: lab gets an error, not its recordings
+    replaced by the twin's."""
+    before = raw_digest(lab_root)
+    proc = snakemake(lab_root, configfile="config/test/tiny.yaml", check=False)
+    assert proc.returncode != 0
+    assert "were not written by the twin (no raw/twin_truth/rig.json)" in said(proc)
+    assert "set source: lab to run on them" in said(proc)
+    assert raw_digest(lab_root) == before

@@ -4,7 +4,7 @@ from pathlib import Path
 
 from pingpong.common.codehash import stage_code_hash
 from pingpong.common.stages import STAGE_SCRIPT as _SCRIPT
-from pingpong.io.lab_layout import CAMERA_SUFFIXES, lab_layout_problems
+from pingpong.io.lab_layout import CAMERA_SUFFIXES, lab_layout_problems, twin_over_recordings
 from pingpong.learning.grid import expand_grid
 
 STAGE_SCRIPT = f"../../{_SCRIPT}"  # every rule's script, relative to workflow/rules/
@@ -37,7 +37,7 @@ def cameras():
 
 def camera_file(session, cam):
     """A camera's recording: raw/sessions/{session}/{cam}.mcap (the twin's; MCAP or a ROS 2 bag), or a
-    video file (several of one camera are an error of check_lab_layout)."""
+    video file (several of one camera are an error of check_raw_layout)."""
     if config["source"] == "twin":
         return f"raw/sessions/{session}/{cam}.mcap"
     found = [f"raw/sessions/{session}/{cam}{s}" for s in CAMERA_SUFFIXES
@@ -152,10 +152,14 @@ def motive_take_start_ns(session):
     return config["lab"]["motive_take_start_ns"].get(session) if optitrack_path(session).endswith(".csv") else None
 
 
-def check_lab_layout():
+def check_raw_layout():
     """Under source: lab, every problem of raw/ against the config, before any job runs (no rule writes raw/
-    there, so anything missing could only fail later, one job at a time)."""
+    there, so anything missing could only fail later, one job at a time); under source: twin, a lab's
+    recordings that the twin would write over."""
     if config["source"] != "lab":
+        problems = twin_over_recordings(Path("."))
+        if problems:
+            raise WorkflowError(problems[0])
         return
     lab = config["lab"]
     problems = lab_layout_problems(Path("."), lab["sessions"], lab["cameras"],

@@ -108,3 +108,19 @@ def lab_layout_problems(root: Path, sessions: list[str], cameras: list[str], opt
     for session in sessions:
         out += session_problems(root, session, cameras, optitrack)
     return out
+
+
+def twin_over_recordings(root: Path) -> list[str]:
+    """Under source: twin (the default), recordings in raw/ that the twin did not write: its rules would
+    write over them. The twin writes raw/twin_truth/rig.json before any recording, so recordings without
+    it are a lab's (or a damaged twin run's, which `make clean` clears)."""
+    root = Path(root)
+    if (root / "raw/twin_truth/rig.json").is_file():
+        return []
+    found = [p for folder in ("raw/sessions", "raw/calibration") for p in sorted((root / folder).rglob("*"))
+             if p.is_file()]
+    if not found:
+        return []
+    return [f"{found[0].relative_to(root)} and {len(found) - 1} more files under raw/ were not written by "
+            f"the twin (no raw/twin_truth/rig.json), and source: twin would write over them; set source: lab "
+            f"to run on them, or move them away to simulate"]
