@@ -1,5 +1,6 @@
-"""Each camera stream's frame size, read from its images in any format, and checked by the pose2d rule against
-the camera's calibration (a video 8 px narrower than its calibration is refused, naming both sizes)."""
+"""Each camera stream's frame size, read from its images in any format, and checked by the pose2d rule
+against the camera's calibration (a video 8 px narrower than its calibration is refused, naming both
+sizes); the rule's OpenPose files counted against the video's frames."""
 
 import shutil
 
@@ -13,6 +14,7 @@ from test_camera_streams import TIMES, H, W, jpeg, raw_bag, square_image
 from pingpong.common.script import Named, StageContext
 from pingpong.io.camera_streams import CameraStreamError, camera_frame_size
 from pingpong.io.mcap_io import CameraStreamWriter, read_camera_stream
+from pingpong.io.openpose_json import KeypointsFileError
 from pingpong.stages import pose2d as stage
 
 N_FRAMES = 30
@@ -62,11 +64,11 @@ def test_the_first_frame_that_decodes_gives_the_size(tmp_path):
         camera_frame_size(tmp_path / "broken.mcap")
 
 
-def run_pose2d(tiny_run, tmp_path, video) -> pd.DataFrame:
-    """The pose2d rule's entry on a video and the first N_FRAMES of the tiny run's cam0 OpenPose files."""
+def run_pose2d(tiny_run, tmp_path, video, n_files: int = N_FRAMES) -> pd.DataFrame:
+    """The pose2d rule's entry on a video and the first n_files of the tiny run's cam0 OpenPose files."""
     openpose = tmp_path / "openpose"
     openpose.mkdir(exist_ok=True)
-    for frame in range(N_FRAMES):
+    for frame in range(n_files):
         name = f"s00_cam0_{frame:012d}_keypoints.json"
         shutil.copy(tiny_run / "raw/sessions/s00/openpose/cam0" / name, openpose / name)
     inputs = Named(cameras=str(tiny_run / "interim/calibration/cameras.json"), stream=str(video),
@@ -90,3 +92,12 @@ def test_a_video_narrower_than_its_calibration_is_refused(tiny_run, tmp_path):
     write_video(frames, tmp_path / "full.mkv", width)
     table = run_pose2d(tiny_run, tmp_path, tmp_path / "full.mkv")
     assert table["time_ns"].nunique() == N_FRAMES
+
+
+def test_one_openpose_file_more_than_video_frames_is_named(tiny_run, tmp_path):
+    frames = tiny_frames(tiny_run)
+    write_video(frames, tmp_path / "full.mkv", frames[0].shape[1])
+    told = (rf"{tmp_path / 'openpose'}: 31 keypoints files \(frames 0..30\) for a video of 30 frames; "
+            r"expected frames 0..29, one file per frame; 1 extra: s00_cam0_000000000030_keypoints.json$")
+    with pytest.raises(KeypointsFileError, match=told):
+        run_pose2d(tiny_run, tmp_path, tmp_path / "full.mkv", n_files=N_FRAMES + 1)
