@@ -16,6 +16,7 @@ refusal is a KeypointsFileError naming the file (and the person).
 """
 
 import json
+import logging
 import os
 import re
 import warnings
@@ -170,6 +171,11 @@ def _pose_values(path: Path, index: int, person, model: str) -> np.ndarray | Non
 def read_model_keypoints(path: str | os.PathLike, model: str = "BODY_25") -> np.ndarray:
     """People (P, K, 3) of one file in the declared model's own keypoint order, values checked (finite,
     confidence in [0, 1], K keypoints); persons without keypoints left out; errors name the file."""
+    return _read_people(path, model)[0]
+
+
+def _read_people(path: str | os.PathLike, model: str) -> tuple[np.ndarray, int]:
+    """read_model_keypoints' people, and how many persons without keypoints it left out."""
     path = Path(path)
     names = model_keypoint_names(model)
     try:
@@ -182,7 +188,8 @@ def read_model_keypoints(path: str | os.PathLike, model: str = "BODY_25") -> np.
                                  'expected {"version":..,"people":[{"pose_keypoints_2d":[x,y,c]*K,..}]}'
                                  ) from exc
     poses = [_pose_values(path, i, person, model) for i, person in enumerate(people)]
-    return np.array([pose for pose in poses if pose is not None]).reshape(-1, len(names), 3)
+    found = [pose for pose in poses if pose is not None]
+    return np.array(found).reshape(-1, len(names), 3), len(poses) - len(found)
 
 
 def read_keypoints_json(path: str | os.PathLike, model: str = "BODY_25") -> np.ndarray:
@@ -286,12 +293,18 @@ def _listed(names: list[str], count: int) -> str:
 
 
 def check_frame_count(folder: str | os.PathLike, entries: list[tuple[int, Path]], n_frames: int,
-                      pattern: str | re.Pattern | None = None) -> None:
-    """An error naming the extra and missing files (the first few of each) and both counts unless the
-    entries (`list_frame_files`) are frames 0..n_frames-1, one file per frame of the video."""
+                      pattern: str | re.Pattern | None = None) -> list[tuple[int, Path]]:
+    """The entries (`list_frame_files`) of frames 0..n_frames-1, one file per frame of the video. Files past
+    the video's last frame are left out with a warning naming them (markerless-capture tools can write one
+    more than a video's frames); any other mismatch is an error naming the extra and missing files (the
+    first few of each) and both counts."""
     frames = [frame for frame, _ in entries]
-    if frames == list(range(n_frames)):
-        return
+    if frames[:n_frames] == list(range(n_frames)):
+        if len(frames) > n_frames:
+            extra = [path.name for _, path in entries[n_frames:]]
+            warnings.warn(f"{folder}: {len(extra)} keypoints files past the video's last frame "
+                          f"{n_frames - 1} left out: {_listed(extra[:SHOWN], len(extra))}", stacklevel=2)
+        return entries[:n_frames]
     extra = [path.name for frame, path in entries if frame >= n_frames]
     missing = np.setdiff1d(np.arange(n_frames), frames)
     pattern = next(p for p in layout_patterns(pattern).values() if p.fullmatch(entries[0][1].name))
@@ -315,9 +328,14 @@ def read_keypoints_folder(folder: str | os.PathLike, model: str = "BODY_25",
     """
     entries = list_frame_files(folder, pattern)
     if n_frames is not None:
-        check_frame_count(folder, entries, n_frames, pattern)
+        entries = check_frame_count(folder, entries, n_frames, pattern)
     frames = np.array([frame for frame, _ in entries], np.int64)
-    per_frame = [read_model_keypoints(path, model) for _, path in entries]
+    read = [_read_people(path, model) for _, path in entries]
+    per_frame, empty = [people for people, _ in read], [n for _, n in read]
+    if sum(empty):
+        first = entries[next(i for i, n in enumerate(empty) if n)][1].name
+        logging.info("%s: %d people without keypoints ({}) in %d files read as nobody (the first in %s)",
+                     folder, sum(empty), sum(map(bool, empty)), first)
     most = max((len(people) for people in per_frame), default=0)
     raw = np.zeros((len(entries), most, len(KEYPOINT_MODELS[model]), 3))
     for i, people in enumerate(per_frame):
