@@ -3,51 +3,17 @@ container times, two with timestamp CSVs), OpenPose JSON in the dotted per-frame
 Anipose TOML calibration in millimetres, and no OptiTrack. Built from the tiny twin run, so the result
 is checked against that run's own 3D ball and joints."""
 
-import shutil
-
-import av
-import cv2
 import numpy as np
 import pandas as pd
 import pytest
 import yaml
+from lab_util import CODEC, dotted_openpose, write_video
 from workflow_util import copy_checkout, snakemake
 
 from pingpong.io.calibration_import import export_anipose_toml
-from pingpong.io.mcap_io import read_camera_stream
 from pingpong.perception.calibration import load_cameras
 
 CAMERAS = ["cam0", "cam1", "cam2"]
-
-
-# H.264 (near-lossless, no chroma subsampling) where this PyAV build has libx264, else FFV1 (lossless,
-# always in FFmpeg): either way the ball keeps its colour
-CODEC, OPTIONS = (("libx264", {"crf": "12", "preset": "ultrafast"}) if "libx264" in av.codecs_available
-                  else ("ffv1", {}))
-
-
-def write_video(mcap, path) -> np.ndarray:
-    """The camera's JPEG frames as a video at 100 fps (CODEC); returns the frame times."""
-    times = []
-    with av.open(str(path), "w") as container:
-        stream = container.add_stream(CODEC, rate=100, options=OPTIONS)
-        for time_ns, jpeg in read_camera_stream(mcap):
-            image = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR)
-            if not times:
-                stream.height, stream.width = image.shape[:2]
-                stream.pix_fmt = "yuv444p"  # no chroma subsampling: the ball's orange stays orange
-            container.mux(stream.encode(av.VideoFrame.from_ndarray(image, format="bgr24")))
-            times.append(time_ns)
-        container.mux(stream.encode())
-    return np.asarray(times, np.int64)
-
-
-def dotted_openpose(source, dest, cam) -> None:
-    """OpenPose's NAME_000000000012_keypoints.json files renamed to the layout cam0.00012.json."""
-    dest.mkdir(parents=True)
-    for f in source.glob("*_keypoints.json"):
-        frame = int(f.name.rsplit("_", 2)[1])
-        shutil.copy(f, dest / f"{cam}.{frame:05d}.json")
 
 
 @pytest.fixture(scope="module")

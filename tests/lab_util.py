@@ -1,0 +1,40 @@
+"""Recordings laid out as a lab brings them, made from the tiny twin run's (the lab-session tests)."""
+
+import shutil
+
+import av
+import cv2
+import numpy as np
+
+from pingpong.io.mcap_io import read_camera_stream
+
+# H.264 (near-lossless, no chroma subsampling) where this PyAV build has libx264, else FFV1 (lossless,
+# always in FFmpeg): either way the ball keeps its colour
+CODEC, OPTIONS = (("libx264", {"crf": "12", "preset": "ultrafast"}) if "libx264" in av.codecs_available
+                  else ("ffv1", {}))
+
+
+def write_video(mcap, path, narrower_px=0) -> np.ndarray:
+    """The camera's JPEG frames as a video at 100 fps (CODEC), their right narrower_px columns cut off;
+    returns the frame times."""
+    times = []
+    with av.open(str(path), "w") as container:
+        stream = container.add_stream(CODEC, rate=100, options=OPTIONS)
+        for time_ns, jpeg in read_camera_stream(mcap):
+            image = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR)
+            image = np.ascontiguousarray(image[:, :image.shape[1] - narrower_px])
+            if not times:
+                stream.height, stream.width = image.shape[:2]
+                stream.pix_fmt = "yuv444p"  # no chroma subsampling: the ball's orange stays orange
+            container.mux(stream.encode(av.VideoFrame.from_ndarray(image, format="bgr24")))
+            times.append(time_ns)
+        container.mux(stream.encode())
+    return np.asarray(times, np.int64)
+
+
+def dotted_openpose(source, dest, cam) -> None:
+    """OpenPose's NAME_000000000012_keypoints.json files renamed to the layout cam0.00012.json."""
+    dest.mkdir(parents=True)
+    for f in source.glob("*_keypoints.json"):
+        frame = int(f.name.rsplit("_", 2)[1])
+        shutil.copy(f, dest / f"{cam}.{frame:05d}.json")
