@@ -110,14 +110,14 @@ def test_k3_is_fixed_for_labs_and_fitted_when_asked(lab_folder):
 
 def fit_params(folder, max_rms_share: float = 0.002) -> dict:
     """The stage's params for a lab fitting its one camera cam0 on LAB_BOARD, k3 left to the lab default."""
-    return {"cameras": ["cam0"], "folders": [str(folder)], "import_path": None, "import_units": None,
-            "import_world": None, "board": LAB_SPEC, "fit_k3": None, "source": "lab",
+    return {"cameras": ["cam0"], "folders": [str(folder)], "import_units": None, "import_world": None,
+            "import_names": {}, "extrinsics": "table_mat", "board": LAB_SPEC, "fit_k3": None, "source": "lab",
             "max_rms_share": max_rms_share, "strict": False, "take_start_ns": None, "code": ""}
 
 
 def test_the_stage_fits_a_lab_without_optitrack(lab_folder, lab_camera, tmp_path):
     out = tmp_path / "cameras.json"
-    inputs = Named(captures=[str(lab_folder / "table.png")])  # and no optitrack
+    inputs = Named(shots=[str(lab_folder / "table.png")])  # and no optitrack
     stage.main(StageContext("calibration", inputs, Named(cameras=str(out)), fit_params(lab_folder), None))
     payload = json.loads(out.read_text())
     camera = Camera.from_dict(payload["cameras"][0])

@@ -284,12 +284,13 @@ TABLE_CORNERS = np.array([[sx * TABLE_HALF_WIDTH, sy * TABLE_HALF_LENGTH, 0.0]
 NET_ENDS = np.array([[0.9144, 0.0, 0.1525], [-0.9144, 0.0, 0.1525]])  # the net posts' tops, m
 
 
-def run_import(tmp_path, path, world, units="m", shots=(), names=NAMES, max_rms_share=0.002):
+def run_import(tmp_path, path, world, units="m", shots=(), names=NAMES, max_rms_share=0.002, name_map=None):
     """The calibration stage's main on an import, with the table shots `shots` (one per camera) if any."""
-    params = {"cameras": names, "folders": [str(tmp_path / n) for n in names], "import_path": str(path),
-              "import_units": units, "import_world": world, "board": None, "fit_k3": None, "source": "lab",
-              "max_rms_share": max_rms_share, "strict": False, "take_start_ns": None, "code": ""}
-    inputs = Named(captures=[str(s) for s in shots]) if shots else Named()  # no optitrack
+    params = {"cameras": names, "folders": [str(tmp_path / n) for n in names], "import_units": units,
+              "import_world": world, "import_names": name_map or {}, "extrinsics": "table_mat", "board": None,
+              "fit_k3": None, "source": "lab", "max_rms_share": max_rms_share, "strict": False,
+              "take_start_ns": None, "code": ""}
+    inputs = Named(calibration_import=str(path), shots=[str(s) for s in shots])  # no optitrack
     out = tmp_path / "cameras.json"
     stage.main(StageContext("calibration", inputs, Named(cameras=str(out)), params, None))
     return load_cameras(out)
@@ -405,6 +406,43 @@ def test_import_config_errors_name_the_key(tmp_path, units, world, names, messag
     export_anipose_toml(random_cameras(np.random.default_rng(12)), tmp_path / "calibration.toml")
     with pytest.raises(CalibrationError, match=message):
         run_import(tmp_path, tmp_path / "calibration.toml", world, units=units, names=names)
+
+
+def renamed(cameras: list[Camera], names: list[str]) -> list[Camera]:
+    return [Camera(n, c.K, c.dist, c.R, c.t, c.width, c.height) for c, n in zip(cameras, names, strict=True)]
+
+
+FILE_NAMES = ["cam_01", "cam_02", "cam_03", "cam_04"]  # as a markerless-capture tool names them
+
+
+def test_a_name_map_serves_a_file_naming_the_cameras_otherwise(tmp_path):
+    cameras = random_cameras(np.random.default_rng(14))
+    export_anipose_toml(renamed(cameras, FILE_NAMES), tmp_path / "calibration.toml")
+    name_map = {"cam_02": "cam1", "cam_01": "cam0", "cam_04": "cam3", "cam_03": "cam2"}
+    loaded, _ = run_import(tmp_path, tmp_path / "calibration.toml", "table", name_map=name_map)
+    assert_same_cameras(loaded, cameras)
+    # cameras named as the file does need no map; a map may rename some only
+    loaded, _ = run_import(tmp_path, tmp_path / "calibration.toml", "table", names=["cam_03", "left"],
+                           name_map={"cam_01": "left"})
+    assert_same_cameras(loaded, renamed([cameras[2], cameras[0]], ["cam_03", "left"]))
+
+
+@pytest.mark.parametrize(("name_map", "message"), [
+    ({}, r"no camera\(s\) \['cam0', 'cam1', 'cam2', 'cam3'\]; the file names \['cam_01', 'cam_02', "
+         r"'cam_03', 'cam_04'\], the config's cameras are \['cam0', 'cam1', 'cam2', 'cam3'\]: map the file's "
+         r"names to the config's with config perception\.calibration_import_names, e\.g\. \{cam_01: cam0, "
+         r"cam_02: cam1, cam_03: cam2, cam_04: cam3\}"),
+    ({"cam_01": "cam0", "cam_02": "cam1", "cam_03": "cam2"},
+     r"no camera\(s\) \['cam3'\]; the file names .* \(renamed by config "
+     r"perception\.calibration_import_names: .*\), the config's cameras are .* e\.g\. \{cam_04: cam3\}"),
+    ({"cam_1": "cam0"}, r"config perception\.calibration_import_names maps \['cam_1'\], which the file does "
+                        r"not name; the file names \['cam_01', 'cam_02', 'cam_03', 'cam_04'\]"),
+    ({"cam_01": "cam0", "cam_02": "cam0"}, r"gives two of the file's cameras .* one name"),
+])
+def test_an_unknown_camera_names_both_sides_and_suggests_the_map(tmp_path, name_map, message):
+    export_anipose_toml(renamed(random_cameras(np.random.default_rng(15)), FILE_NAMES), tmp_path / "c.toml")
+    with pytest.raises(CalibrationError, match=message):
+        run_import(tmp_path, tmp_path / "c.toml", "table", name_map=name_map)
 
 
 def test_optitrack_entries_with_and_without_optitrack():

@@ -4,16 +4,17 @@ PERCEPTION = config["perception"]
 
 rule calibration:
     input:
-        captures=calibration_captures(),
+        unpack(calibration_captures),
         optitrack=[optitrack_path(sessions()[0])] if has_optitrack() else [],
     output:
         cameras="interim/calibration/cameras.json",
     params:
         cameras=cameras(),
         folders=expand("raw/calibration/{cam}", cam=cameras()),
-        import_path=PERCEPTION["calibration_import"],
         import_units=PERCEPTION["calibration_import_units"],
         import_world=PERCEPTION["calibration_import_world"],
+        import_names=PERCEPTION["calibration_import_names"],
+        extrinsics=PERCEPTION["calibration_extrinsics"],
         board=PERCEPTION["calibration_board"],
         fit_k3=PERCEPTION["calibration_fit_k3"],
         source=config["source"],

@@ -1,5 +1,6 @@
-"""Camera calibration: intrinsics from views of a hand-held board, extrinsics from the ChArUco mat on the
-table; or an imported calibration placed in the table frame. Either is checked by reprojection.
+"""Camera calibration: intrinsics from views of a hand-held board (any image format OpenCV reads), extrinsics
+from the ChArUco mat on the table, a board lying at a known pose (floor or table) or listed scene points;
+or an imported calibration placed in the table frame. Either is checked by reprojection.
 
 OpenCV does the work (findChessboardCorners + cornerSubPix or CharucoDetector, calibrateCamera,
 solvePnP); this module only chains it and reports errors per camera. The calibration rule also fits
@@ -10,12 +11,14 @@ OptiTrack.
 import logging
 import os
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pandas as pd
+import yaml
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
@@ -30,6 +33,14 @@ from pingpong.common.patterns import (
     table_pattern_object_points,
 )
 from pingpong.common.rigid import fit_rigid_transform, invert_transform, make_transform
+from pingpong.io.calibration_files import (
+    BOARD_SHOT,
+    FORMATS,
+    TABLE_SHOT,
+    VIEWS_STEM,
+    extrinsics_shot,
+    intrinsics_views,
+)
 from pingpong.io.calibration_import import change_world_frame, read_anipose_toml, read_opencv_calibration
 from pingpong.perception.schemas import CAMERAS
 
@@ -41,6 +52,8 @@ MIN_CHARUCO_CORNERS = 6  # per intrinsics view: fewer constrain the view's pose 
 BOARD_CONFIG = "config perception.calibration_board"
 WORLD_CONFIG = "config perception.calibration_import_world"
 RMS_CONFIG = "config perception.calibration_max_rms_share"
+EXTRINSICS_CONFIG = "config perception.calibration_extrinsics"
+NAMES_CONFIG = "config perception.calibration_import_names"
 
 
 class CalibrationError(RuntimeError):
@@ -255,38 +268,295 @@ def extrinsics_from_table(path, K: np.ndarray, dist: np.ndarray,
     return {"R": cv2.Rodrigues(rvec)[0], "t": tvec.ravel(), "rms_px": rms, "n_corners": int(len(obj))}
 
 
-def calibrate_camera(name: str, intrinsics_paths: list, table_path,
-                     setup: IntrinsicsSetup = IntrinsicsSetup()) -> tuple[Camera, dict]:
-    """One camera from its raw calibration captures, and its error report."""
+# --- where the cameras stand: the world frame from the table mat, a board at a known pose, or points ---
+
+@dataclass(frozen=True)
+class TableMat:
+    """The table's ChArUco mat (patterns.TABLE_CHARUCO) in each camera's table.{ext}: the table frame."""
+
+    shot: str = TABLE_SHOT
+    frame: str = "table"
+    what: str = "the table mat"
+
+    def place(self, name: str, shot, K: np.ndarray, dist: np.ndarray) -> dict:
+        extr = extrinsics_from_table(shot, K, dist)
+        return {**extr, "report": {"table_corners": extr["n_corners"]}}
+
+
+@dataclass(frozen=True, eq=False)
+class WorldBoard:
+    """A board lying flat (on the floor or the table) at a known pose, in each camera's extrinsics.{ext}.
+
+    T_world_from_board maps the board frame (as find_board gives its points: a checkerboard's origin at
+    its first inner corner, a ChArUco board's at its corner; z = x cross y, into the board) to the world.
+    """
+
+    board: Checkerboard | Charuco
+    T_world_from_board: np.ndarray  # 4x4, m
+    frame: str  # 'table' (the pose is given in the table frame) or 'lab' (a frame of the lab's own)
+    shot: str = BOARD_SHOT
+    what: str = "the board at its configured pose"
+
+    def place(self, name: str, shot, K: np.ndarray, dist: np.ndarray) -> dict:
+        return extrinsics_from_board(shot, K, dist, self.board, self.T_world_from_board)
+
+
+@dataclass(frozen=True, eq=False)
+class ScenePoints:
+    """Named world points (m) and, per camera, the pixels where they are seen: no shot is read."""
+
+    points: dict  # name -> (3,) world position, m
+    pixels: dict  # camera -> {name -> (2,) pixel, px}
+    frame: str
+    where: str  # the config key or file they were listed in, for messages
+    shot: None = None
+    what: str = "the listed scene points"
+
+    def place(self, name: str, shot, K: np.ndarray, dist: np.ndarray) -> dict:
+        seen = self.pixels.get(name, {})
+        names = [n for n in seen if n in self.points]
+        return extrinsics_from_points(name, np.array([self.points[n] for n in names]).reshape(-1, 3),
+                                      np.array([seen[n] for n in names]).reshape(-1, 2), names, K, dist,
+                                      self.where)
+
+
+def log_world_frame(method) -> None:
+    if method.frame == "table":
+        log.info("world frame: the table frame, placed by %s", method.what)
+    else:
+        log.warning("world frame: the lab's own (%s gives %s in it, frame: lab); there is no table frame, "
+                    "so only stages that need none (pose) apply", EXTRINSICS_CONFIG, method.what)
+
+
+def _pnp(obj: np.ndarray, img: np.ndarray, K: np.ndarray, dist: np.ndarray, flags: int):
+    """solvePnP refined by Levenberg-Marquardt: (R, t, per-point reprojection errors px), or None."""
+    obj, img = np.ascontiguousarray(obj, np.float64), np.ascontiguousarray(img, np.float64).reshape(-1, 1, 2)
+    ok, rvec, tvec = cv2.solvePnP(obj, img, K, dist, flags=flags)
+    if not ok:
+        return None
+    rvec, tvec = cv2.solvePnPRefineLM(obj, img, K, dist, rvec, tvec)
+    projected, _ = cv2.projectPoints(obj, rvec, tvec, K, dist)
+    errors = np.linalg.norm(projected.reshape(-1, 2) - img.reshape(-1, 2), axis=1)
+    return cv2.Rodrigues(rvec)[0], tvec.ravel(), errors
+
+
+def _rms(errors: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(errors ** 2)))
+
+
+def extrinsics_from_board(path, K: np.ndarray, dist: np.ndarray, board: Checkerboard | Charuco,
+                          T_world_from_board: np.ndarray) -> dict:
+    """World->camera R, t from a board lying at a known pose, seen in the shot `path`."""
+    gray = read_gray(path)
+    found = find_board(gray, board)
+    if found is None:
+        raise CalibrationError(f"{path}: no {describe_board(board)} found: the extrinsics shot must show "
+                               f"the board of {EXTRINSICS_CONFIG} lying at its configured pose")
+    obj, img = found
+    if isinstance(board, Checkerboard):
+        try:
+            img = _checkerboard_from_its_origin(gray, obj, img, board)
+        except CalibrationError as err:
+            raise CalibrationError(f"{path}: {err}") from None
+    solved = _pnp(obj, img, K, dist, cv2.SOLVEPNP_IPPE)
+    if solved is None:
+        raise CalibrationError(f"{path}: solvePnP failed on {len(obj)} board corners")
+    R_cb, t_cb, errors = solved
+    T_cam_from_world = make_transform(R_cb, t_cb) @ invert_transform(T_world_from_board)
+    return {"R": T_cam_from_world[:3, :3], "t": T_cam_from_world[:3, 3], "rms_px": _rms(errors),
+            "report": {"board_corners": int(len(obj))}}
+
+
+def _checkerboard_from_its_origin(gray: np.ndarray, obj: np.ndarray, img: np.ndarray,
+                                  board: Checkerboard) -> np.ndarray:
+    """The corners in board order, whichever corner cv2.findChessboardCorners started from.
+
+    It may list the grid from any of its four corners. Board order: seen from the printed face, x runs
+    along a row and y turned 90 deg clockwise from it (a right-handed frame, z into the board), and the
+    square diagonally outside the origin corner is black (the twin's print). Of the four orderings one
+    alone has both when one inner-corner count is odd and the other even (world_board refuses others).
+    """
+    grid = np.arange(len(img)).reshape(board.inner_rows, board.inner_cols)
+    blurred = cv2.blur(gray, (3, 3))
+    for order in (grid, grid[::-1, ::-1], grid[::-1, :], grid[:, ::-1]):
+        candidate = img[order.ravel()]
+        dx, dy = candidate[1] - candidate[0], candidate[board.inner_cols] - candidate[0]
+        if dx[0] * dy[1] - dx[1] * dy[0] > 0 and _black_outside_origin(blurred, obj, candidate, board):
+            return candidate
+    raise CalibrationError(f"the {describe_board(board)} shows no black corner square diagonally outside a "
+                           f"corner of its grid: is it the configured board?")
+
+
+def _black_outside_origin(gray: np.ndarray, obj: np.ndarray, img: np.ndarray, board: Checkerboard) -> bool:
+    """Whether the square diagonally outside corner 0 is darker than its two neighbours along the edges."""
+    H, _ = cv2.findHomography(obj[:, :2].astype(np.float64), img.astype(np.float64))
+    probes = np.array([[-0.5, -0.5], [0.5, -0.5], [-0.5, 0.5]]) * board.square
+    px = cv2.perspectiveTransform(probes.reshape(-1, 1, 2), H).reshape(-1, 2)
+    if not ((px >= 0).all() and (px < np.array(gray.shape[::-1]) - 1).all()):
+        raise CalibrationError(f"the {describe_board(board)}'s outer squares lie outside the image: the "
+                               f"whole board must be in the extrinsics shot")
+    level = gray[np.round(px[:, 1]).astype(int), np.round(px[:, 0]).astype(int)].astype(float)
+    return bool(level[0] < level[1:].min())
+
+
+def world_board(spec: dict, board: Checkerboard | Charuco) -> WorldBoard:
+    """The WorldBoard of a config {type: board, origin_m, x_axis, y_axis, frame, board}."""
+    if isinstance(board, Checkerboard) and (board.inner_cols == board.inner_rows
+                                            or (board.inner_cols + board.inner_rows) % 2 == 0):
+        raise CalibrationError(f"{EXTRINSICS_CONFIG}: the {describe_board(board)} looks the same turned by "
+                               f"180 deg, so its corners cannot be told apart: lay a checkerboard with an "
+                               f"odd and an even number of inner corners (e.g. 9x6), or a ChArUco board")
+    x, y = (np.asarray(spec[k], float).reshape(3) for k in ("x_axis", "y_axis"))
+    if min(np.linalg.norm(x), np.linalg.norm(y)) < 1e-9:
+        raise CalibrationError(f"{EXTRINSICS_CONFIG}: x_axis and y_axis must be non-zero directions")
+    x, y = x / np.linalg.norm(x), y / np.linalg.norm(y)
+    if abs(x @ y) > np.sin(np.radians(1.0)):
+        angle = np.degrees(np.arccos(np.clip(x @ y, -1, 1)))
+        raise CalibrationError(f"{EXTRINSICS_CONFIG}: x_axis and y_axis must be perpendicular (within "
+                               f"1 deg), they are {angle:.1f} deg apart")
+    y = y - (x @ y) * x  # exactly perpendicular
+    y /= np.linalg.norm(y)
+    R = np.column_stack([x, y, np.cross(x, y)])
+    return WorldBoard(board, make_transform(R, np.asarray(spec["origin_m"], float).reshape(3)),
+                      spec.get("frame", "table"))
+
+
+def extrinsics_from_points(name: str, xyz: np.ndarray, pixels: np.ndarray, names: list[str],
+                           K: np.ndarray, dist: np.ndarray, where: str) -> dict:
+    """World->camera R, t from >= 4 named world points (N, 3) m and their pixels (N, 2) px: SQPnP, then
+    Levenberg-Marquardt on every point."""
+    if len(xyz) < 4 or np.linalg.matrix_rank(xyz - xyz.mean(axis=0), tol=1e-3) < 2:
+        raise CalibrationError(f"{name}: {where} lists {len(xyz)} scene points seen by this camera "
+                               f"({', '.join(names) or 'none'}); at least 4, not on one line, are needed")
+    solved = _pnp(xyz, pixels, K, dist, cv2.SOLVEPNP_SQPNP)
+    if solved is None:
+        raise CalibrationError(f"{name}: solvePnP failed on the scene points of {where}")
+    R, t, errors = solved
+    worst = int(np.argmax(errors))
+    log.info("%s: scene points reproject at %.2f px RMS, the worst %s at %.2f px", name, _rms(errors),
+             names[worst], errors[worst])
+    return {"R": R, "t": t, "rms_px": _rms(errors),
+            "report": {"scene_points": len(names), "worst_point": names[worst],
+                       "worst_point_px": float(errors[worst])}}
+
+
+def extrinsics_method(spec, board_spec: dict, points_file=None) -> "TableMat | WorldBoard | ScenePoints":
+    """How the stage places the cameras, from config perception.calibration_extrinsics: 'table_mat',
+    {type: board, origin_m, x_axis, y_axis, [board], [frame]} (board: the calibration board when absent)
+    or {type: points, points: {name: [x, y, z]}, pixels: {camera: {name: [u, v]}}, [frame]} /
+    {type: points, file, [frame]} (the file's contents, read from `points_file`, the rule's input)."""
+    if spec in (None, "table_mat"):
+        return TableMat()
+    kind = spec.get("type") if isinstance(spec, dict) else None
+    if kind == "board":
+        return world_board(spec, intrinsics_board(spec.get("board", board_spec)))
+    if kind == "points":
+        listed, where = spec, EXTRINSICS_CONFIG
+        if "file" in spec:
+            if points_file is None:
+                raise CalibrationError(f"{EXTRINSICS_CONFIG}: file {spec['file']} is not among the rule's "
+                                       f"inputs")
+            listed, where = read_scene_points(points_file), str(points_file)
+        return scene_points(listed, spec.get("frame", "table"), where)
+    raise CalibrationError(f"{EXTRINSICS_CONFIG} must be 'table_mat', {{type: board, ...}} or {{type: "
+                           f"points, ...}}; got {spec!r}")
+
+
+def scene_points(listed: dict, frame: str, where: str) -> ScenePoints:
+    """ScenePoints of {points: {name: [x, y, z] m}, pixels: {camera: {name: [u, v] px}}}, checked."""
+    points, pixels = listed.get("points"), listed.get("pixels")
+    if not (isinstance(points, dict) and points and isinstance(pixels, dict) and pixels):
+        raise CalibrationError(f"{where}: expected points: {{name: [x, y, z] (m)}} and pixels: {{camera: "
+                               f"{{name: [u, v] (px)}}}}, got {listed!r}")
+    xyz = {}
+    for name, p in points.items():
+        if np.size(p) != 3 or not np.all(np.isfinite(np.asarray(p, float))):
+            raise CalibrationError(f"{where}: point {name!r} must be [x, y, z] in m, got {p!r}")
+        xyz[str(name)] = np.asarray(p, float).reshape(3)
+    uv = {}
+    for cam, seen in pixels.items():
+        if not isinstance(seen, dict):
+            raise CalibrationError(f"{where}: pixels of camera {cam!r} must map point names to [u, v] px")
+        for name, q in seen.items():
+            if str(name) not in xyz:
+                raise CalibrationError(f"{where}: camera {cam!r} sees point {name!r}, which is not among the "
+                                       f"points {sorted(xyz)}")
+            if np.size(q) != 2 or not np.all(np.isfinite(np.asarray(q, float))):
+                raise CalibrationError(f"{where}: pixel of point {name!r} in camera {cam!r} must be [u, v] "
+                                       f"px, got {q!r}")
+        uv[str(cam)] = {str(n): np.asarray(q, float).reshape(2) for n, q in seen.items()}
+    return ScenePoints(xyz, uv, frame, where)
+
+
+def read_scene_points(path) -> dict:
+    """{points, pixels} from a YAML file of that layout, or a CSV with one row per point: point, x_m, y_m,
+    z_m, then {camera}_u, {camera}_v column pairs (a cell left empty: not seen by that camera)."""
+    path = Path(path)
+    if path.suffix.lower() in (".yaml", ".yml"):
+        try:
+            listed = yaml.safe_load(path.read_text())
+        except (OSError, yaml.YAMLError) as err:
+            raise CalibrationError(f"{path}: cannot read the scene points ({err})") from None
+        return listed if isinstance(listed, dict) else {"points": None, "pixels": None}
+    if path.suffix.lower() != ".csv":
+        raise CalibrationError(f"{path}: scene points must be a .yaml or .csv file")
+    table = pd.read_csv(path)
+    cams = [c[:-2] for c in table.columns if c.endswith("_u") and f"{c[:-2]}_v" in table.columns]
+    if not {"point", "x_m", "y_m", "z_m"} <= set(table.columns) or not cams:
+        raise CalibrationError(f"{path}: expected the columns point, x_m, y_m, z_m and {{camera}}_u, "
+                               f"{{camera}}_v per camera; got {list(table.columns)}")
+    points = {str(r.point): [r.x_m, r.y_m, r.z_m] for r in table.itertuples()}
+    pixels = {cam: {str(p): [u, v] for p, u, v in zip(table["point"], table[f"{cam}_u"], table[f"{cam}_v"],
+                                                       strict=True) if pd.notna(u) and pd.notna(v)}
+              for cam in cams}
+    return {"points": points, "pixels": pixels}
+
+
+def calibrate_camera(name: str, intrinsics_paths: list, place, setup: IntrinsicsSetup = IntrinsicsSetup()
+                     ) -> tuple[Camera, dict]:
+    """One camera from its board views and `place` (K, dist -> its extrinsics record: R, t, rms_px and
+    the report's entries), and its error report."""
     intr = calibrate_intrinsics(sorted(intrinsics_paths, key=str), setup)
-    extr = extrinsics_from_table(table_path, intr["K"], intr["dist"])
+    extr = place(intr["K"], intr["dist"])
     camera = Camera(name, intr["K"], intr["dist"], extr["R"], extr["t"], *intr["size"])
     report = {"name": name, "intrinsics_rms_px": intr["rms_px"], "views_used": len(intr["views"]),
-              "extrinsics_rms_px": extr["rms_px"], "table_corners": extr["n_corners"],
-              "center": camera.center.tolist()}
+              "extrinsics_rms_px": extr["rms_px"], **extr["report"], "center": camera.center.tolist()}
     log.info("%s: intrinsics RMS %.3f px over %d views, extrinsics RMS %.3f px", name,
              intr["rms_px"], len(intr["views"]), extr["rms_px"])
     return camera, report
 
 
-def camera_folder_paths(folder) -> tuple[list[Path], Path]:
-    """A camera's intrinsics views `intrinsics_*.png` and its table shot `table.png`."""
+def camera_folder_paths(folder, shot_stem: str | None = TABLE_SHOT) -> tuple[list[Path], Path | None]:
+    """A camera's intrinsics views `intrinsics_*.{ext}` and its extrinsics shot `{shot_stem}.{ext}` (None
+    when shot_stem is None: scene points need none), in any image format OpenCV reads."""
     folder = Path(folder)
-    views = sorted(folder.glob("intrinsics_*.png"))
+    views = intrinsics_views(folder)
     if not views:
-        raise CalibrationError(f"{folder}: no intrinsics views intrinsics_*.png to calibrate from")
-    return views, folder / "table.png"
+        raise CalibrationError(f"{folder}: no intrinsics views {VIEWS_STEM}*.{FORMATS} to calibrate from")
+    if shot_stem is None:
+        return views, None
+    shot = extrinsics_shot(folder, shot_stem)
+    if shot is None:
+        raise CalibrationError(f"{folder}: no extrinsics shot {shot_stem}.{FORMATS}")
+    return views, shot
 
 
-def fit_calibration(names: list[str], folders: list, setup: IntrinsicsSetup,
-                    max_rms_share: float) -> tuple[list[Camera], list[dict]]:
-    """Every camera from its folder's captures, and the reports, checked by reprojection."""
-    pairs = [calibrate_camera(name, *camera_folder_paths(folder), setup)
-             for name, folder in zip(names, folders, strict=True)]
+def fit_calibration(names: list[str], folders: list, setup: IntrinsicsSetup, max_rms_share: float,
+                    method=None) -> tuple[list[Camera], list[dict]]:
+    """Every camera from its folder's captures, placed in the world by `method` (TableMat, WorldBoard or
+    ScenePoints; the table mat by default), and the reports, checked by reprojection."""
+    method = method or TableMat()
+    log_world_frame(method)
+    pairs = []
+    for name, folder in zip(names, folders, strict=True):
+        views, shot = camera_folder_paths(folder, method.shot)
+        pairs.append(calibrate_camera(name, views, partial(method.place, name, shot), setup))
     for camera, report in pairs:
         worst = max(report["intrinsics_rms_px"], report["extrinsics_rms_px"])
-        check_rms(camera, worst, f"its board views ({report['intrinsics_rms_px']:.2f} px) and the table "
-                  f"mat ({report['extrinsics_rms_px']:.2f} px)", max_rms_share)
+        point = (f"; the worst point {report['worst_point']} at {report['worst_point_px']:.2f} px"
+                 if "worst_point" in report else "")
+        check_rms(camera, worst, f"its board views ({report['intrinsics_rms_px']:.2f} px) and "
+                  f"{method.what} ({report['extrinsics_rms_px']:.2f} px{point})", max_rms_share)
     return [c for c, _ in pairs], [r for _, r in pairs]
 
 
@@ -315,19 +585,20 @@ def reprojection_rms(camera: Camera, points: np.ndarray, pixels: np.ndarray) -> 
 # --- an imported calibration ------------------------------------------------------------------------
 
 def import_calibration(path, units: str | None, world, names: list[str], table_shots: dict,
-                       max_rms_share: float) -> tuple[list[Camera], list[dict]]:
+                       max_rms_share: float, name_map: dict | None = None) -> tuple[list[Camera], list[dict]]:
     """The configured cameras of an imported calibration file, placed in the table frame as `world` says,
     and the records of the reprojection checks they passed (none: unchecked, logged).
 
     units: the file's length unit (m, cm, mm); world: 'table', {T_table_from_world: 4x4 (m)} or
     {table_points: [{xyz_m: [x, y, z], pixels: {camera: [u, v]}}, ...]} (see table_from_world);
-    table_shots: camera name -> its table.png, where the lab has them.
+    table_shots: camera name -> its table.{ext}, where the lab has them; name_map: {name in the file:
+    camera name} for the file's cameras named otherwise than the config's.
     """
     if units is None:
         raise CalibrationError(f"{path}: config perception.calibration_import_units is required with an "
                                f"import: the file's length unit (m, cm or mm), which neither format states")
     reader = read_anipose_toml if str(path).endswith(".toml") else read_opencv_calibration
-    cameras = _configured(reader(path, units=units), names, path)
+    cameras = _configured(reader(path, units=units), names, path, name_map or {})
     T_table_from_world, observations = table_from_world(world, cameras)
     cameras = change_world_frame(cameras, invert_transform(T_table_from_world))
     checks = []
@@ -350,12 +621,25 @@ def import_calibration(path, units: str | None, world, names: list[str], table_s
     return cameras, checks
 
 
-def _configured(cameras: list[Camera], names: list[str], path) -> list[Camera]:
-    by_name = {c.name: c for c in cameras}
+def _configured(cameras: list[Camera], names: list[str], path, name_map: dict) -> list[Camera]:
+    """The config's cameras, in its order, from the file's (renamed by name_map: {file's: config's})."""
+    in_file = [c.name for c in cameras]
+    unknown = sorted(set(name_map) - set(in_file))
+    if unknown:
+        raise CalibrationError(f"{path}: {NAMES_CONFIG} maps {unknown}, which the file does not name; the "
+                               f"file names {in_file}")
+    by_name = {name_map.get(c.name, c.name): replace(c, name=name_map.get(c.name, c.name)) for c in cameras}
+    if len(by_name) < len(cameras):
+        raise CalibrationError(f"{path}: {NAMES_CONFIG} ({name_map}) gives two of the file's cameras "
+                               f"{in_file} one name")
     missing = [n for n in names if n not in by_name]
     if missing:
-        raise CalibrationError(f"{path}: no camera(s) {missing}; the file names {sorted(by_name)}: name the "
-                               f"config's cameras as the file does")
+        example = ", ".join(f"{f}: {c}" for f, c in zip([n for n in in_file if n not in name_map],
+                                                        missing, strict=False))
+        raise CalibrationError(f"{path}: no camera(s) {missing}; the file names {in_file}"
+                               f"{f' (renamed by {NAMES_CONFIG}: {name_map})' if name_map else ''}, the "
+                               f"config's cameras are {names}: map the file's names to the config's with "
+                               f"{NAMES_CONFIG}, e.g. {{{example}}}")
     return [by_name[n] for n in names]
 
 

@@ -1,9 +1,11 @@
-"""Rule calibration: every camera's intrinsics and table-frame extrinsics, fitted on the lab's board or
-imported, checked by reprojection; and the OptiTrack-to-table fit where the lab has OptiTrack."""
+"""Rule calibration: every camera's intrinsics and extrinsics, fitted on the lab's board views and placed
+by the table mat, a board at a known pose or listed scene points, or imported; checked by reprojection;
+and the OptiTrack-to-table fit where the lab has OptiTrack."""
 
 from pingpong.common.artifacts import write_json
 from pingpong.io.optitrack import read_optitrack_poses
 from pingpong.perception.calibration import (
+    extrinsics_method,
     fit_calibration,
     import_calibration,
     intrinsics_setup,
@@ -12,20 +14,28 @@ from pingpong.perception.calibration import (
 from pingpong.perception.schemas import CAMERAS
 
 
+def _one(value):
+    """An optional input given as a path, a list of one, or nothing."""
+    if isinstance(value, list | tuple):
+        return value[0] if value else None
+    return value or None
+
+
 def main(ctx):
     p = ctx.params
-    shots = list(ctx.input.get("captures") or [])  # every camera's table.png (p["cameras"] order), or none
-    if p["import_path"]:
-        cameras, checks = import_calibration(p["import_path"], p["import_units"], p["import_world"],
-                                             p["cameras"], dict(zip(p["cameras"], shots, strict=bool(shots))),
-                                             p["max_rms_share"])
-        record = {"reports": [], "import_checks": checks}
+    import_path = _one(ctx.input.get("calibration_import"))
+    if import_path:
+        shots = list(ctx.input.get("shots") or [])  # every camera's table shot (p["cameras"] order), or none
+        cameras, checks = import_calibration(import_path, p["import_units"], p["import_world"], p["cameras"],
+                                             dict(zip(p["cameras"], shots, strict=bool(shots))),
+                                             p["max_rms_share"], p["import_names"])
+        record, frame = {"reports": [], "import_checks": checks}, "table"
     else:
         setup = intrinsics_setup(p["board"], p["fit_k3"], p["source"])
-        cameras, reports = fit_calibration(p["cameras"], p["folders"], setup, p["max_rms_share"])
-        record = {"reports": reports}
-    optitrack = ctx.input.get("optitrack") or None  # a list of one, or none: a lab without OptiTrack
-    optitrack = optitrack if optitrack is None or isinstance(optitrack, str) else optitrack[0]
+        method = extrinsics_method(p["extrinsics"], p["board"], _one(ctx.input.get("scene_points")))
+        cameras, reports = fit_calibration(p["cameras"], p["folders"], setup, p["max_rms_share"], method)
+        record, frame = {"reports": reports}, method.frame
+    optitrack = _one(ctx.input.get("optitrack"))  # none: a lab without OptiTrack
     poses = None if optitrack is None else read_optitrack_poses(optitrack, p["strict"], p["take_start_ns"])
-    write_json({"cameras": [c.to_dict() for c in cameras], **record, **optitrack_record(poses)},
-               ctx.output.cameras, CAMERAS, ctx.provenance())
+    write_json({"cameras": [c.to_dict() for c in cameras], **record, "world_frame": frame,
+                **optitrack_record(poses)}, ctx.output.cameras, CAMERAS, ctx.provenance())
