@@ -152,6 +152,7 @@ rule triangulation:
         cams=lambda wc: session_cameras(wc.session),
         max_reproj_share=PERCEPTION["max_reproj_share"],
         min_views=PERCEPTION["min_views"],
+        ball_flight=PERCEPTION["ball_flight"],
         scene=PERCEPTION["scene"],
         association_share=PERCEPTION["association_share"],
         pose_gate_noise_factor=PERCEPTION["pose_gate_noise_factor"],

@@ -2,6 +2,8 @@
 
 import logging
 
+import pandas as pd
+
 from pingpong.common.artifacts import read_table, write_table
 from pingpong.perception.ball_flight import FlightRule, ball_verdict, drop_phantoms
 from pingpong.perception.calibration import load_cameras
@@ -16,20 +18,26 @@ def main(ctx):
     all_cameras, _ = load_cameras(ctx.input.cameras)
     cameras = [next(c for c in all_cameras if c.name == name) for name in p["cams"]]
     prov = ctx.provenance()
-    gate = reprojection_gate_px(cameras, p["max_reproj_share"])
-    ball = ball3d_table(cameras, [read_table(f, DETECTIONS) for f in ctx.input.detections], gate,
-                        p["min_views"])
-    agreed = int(ball["x"].notna().sum())
-    ball, counts = drop_phantoms(ball, FlightRule.from_config(p["ball_flight"]))
+    ball = session_ball(cameras, [read_table(f, DETECTIONS) for f in ctx.input.detections], p)
     write_table(ball, ctx.output.ball3d, BALL3D, prov)
     pose, report = pose3d_table(cameras, [read_table(f, POSE2D) for f in ctx.input.pose2d],
                                 Scene.from_config(p["scene"]), p["association_share"], p["max_reproj_share"],
                                 p["pose_gate_noise_factor"], p["pose_confidence_weights"], p["min_views"])
     write_table(pose, ctx.output.pose3d, POSE3D, prov)
     log_pose_report(report)
+
+
+def session_ball(cameras: list, detections: list[pd.DataFrame], p: dict) -> pd.DataFrame:
+    """The session's 3D ball (BALL3D): points whose views agree (the reprojection gate), kept only on a
+    flight (pingpong.perception.ball_flight); logs the phantoms dropped and whether the session has a ball."""
+    gate = reprojection_gate_px(cameras, p["max_reproj_share"])
+    ball = ball3d_table(cameras, detections, gate, p["min_views"])
+    agreed = int(ball["x"].notna().sum())
+    ball, counts = drop_phantoms(ball, FlightRule.from_config(p["ball_flight"]))
     has_ball, verdict = ball_verdict(counts, len(ball))
     logging.log(logging.INFO if has_ball else logging.WARNING,
                 "3D ball whose views agree in %d of %d frames; %s", agreed, len(ball), verdict)
+    return ball
 
 
 def log_pose_report(report: dict) -> None:
