@@ -7,6 +7,8 @@ import shutil
 import pytest
 from workflow_util import copy_checkout, snakemake, write_config
 
+from pingpong.io.lab_layout import lab_layout_problems
+
 LAB = {"source": "lab", "lab": {"sessions": ["s00"], "cameras": ["cam0", "cam1", "cam2"]}}
 
 
@@ -94,3 +96,23 @@ def test_the_default_source_refuses_to_simulate_over_a_labs_recordings(lab_root)
     assert "were not written by the twin (no raw/twin_truth/rig.json)" in said(proc)
     assert "set source: lab to run on them" in said(proc)
     assert raw_digest(lab_root) == before
+
+
+@pytest.mark.parametrize(("extrinsics", "needed"), [("table_mat", "table"), ("board", "extrinsics"),
+                                                     ("points", None)])
+def test_the_shot_each_extrinsics_method_needs(tmp_path, extrinsics, needed):
+    """Each camera needs its board views and the extrinsics shot its method reads (none for scene points),
+    in any image format; an imported calibration needs only its file."""
+    for cam in ("c1", "c2"):
+        (tmp_path / "raw/calibration" / cam).mkdir(parents=True)
+        (tmp_path / f"raw/calibration/{cam}/intrinsics_00.JPG").write_bytes(b"")
+    problems = lab_layout_problems(tmp_path, [], ["c1", "c2"], None, None, extrinsics)
+    expected = [] if needed is None else [f"raw/calibration/{c}/{needed}.*: missing" for c in ("c1", "c2")]
+    assert [p.split("; expected")[0] for p in problems if p.startswith("raw/")] == expected
+    if needed:
+        (tmp_path / f"raw/calibration/c1/{needed}.tif").write_bytes(b"")
+        (tmp_path / f"raw/calibration/c2/{needed}.bmp").write_bytes(b"")
+        assert not [p for p in lab_layout_problems(tmp_path, [], ["c1", "c2"], None, None, extrinsics)
+                    if p.startswith("raw/")]
+    assert lab_layout_problems(tmp_path, [], ["c1"], None, "rig.toml", extrinsics)[1].startswith(
+        "rig.toml: missing (perception.calibration_import)")

@@ -95,8 +95,9 @@ TRUTH_TABLES = ["ball", "shots", "events", "people", "paddles", "strike_oracle"]
 
 def raw_outputs():
     """Everything under raw/ that the later stages read (written by the twin or by a lab)."""
+    captures = calibration_captures()
     return (
-        expand("raw/calibration/{cam}/table.png", cam=cameras())
+        [f for files in captures.values() for f in ([files] if isinstance(files, str) else files)]
         + [camera_file(s, c) for s in sessions() for c in session_cameras(s)]
         + [f"raw/sessions/{s}/openpose/{c}" for s in sessions() for c in session_cameras(s)]
         + [optitrack_path(s) for s in sessions() if has_optitrack()]
@@ -162,9 +163,11 @@ def check_raw_layout():
             raise WorkflowError(problems[0])
         return
     lab = config["lab"]
+    extrinsics = config["perception"]["calibration_extrinsics"]
     problems = lab_layout_problems(Path("."), lab["sessions"], lab["cameras"],
                                    Path(optitrack_path("any")).name if has_optitrack() else None,
-                                   config["perception"]["calibration_import"])
+                                   config["perception"]["calibration_import"],
+                                   extrinsics["type"] if isinstance(extrinsics, dict) else extrinsics)
     if problems:
         raise WorkflowError("the lab's recordings under raw/ do not match the config:\n  - "
                             + "\n  - ".join(problems) + "\n(see the README's 'Bringing your lab's recordings')")

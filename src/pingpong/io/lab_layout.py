@@ -10,10 +10,17 @@ for characters that would make paths ambiguous.
 import re
 from pathlib import Path
 
+from pingpong.io.calibration_files import (
+    BOARD_SHOT,
+    TABLE_SHOT,
+    VIEWS_STEM,
+    CaptureLayoutError,
+    extrinsics_shot,
+    intrinsics_views,
+)
+
 # the camera file formats a lab may hand over (pingpong.io.camera_streams detects which is which)
 CAMERA_SUFFIXES = (".mcap", ".mp4", ".avi", ".mkv", ".mov")
-# views OpenCV reads (cv2.imread); the calibration rule takes any of them
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".pgm", ".ppm")
 NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_\-]*")
 # file stems of raw/sessions/{session}/ that are not cameras
 NOT_CAMERAS = ("optitrack",)
@@ -35,11 +42,6 @@ def camera_recordings(folder: Path) -> dict[str, list[Path]]:
         if path.suffix.lower() in CAMERA_SUFFIXES and path.stem not in NOT_CAMERAS and path.is_file():
             found.setdefault(path.stem, []).append(path)
     return found
-
-
-def images(folder: Path, stem_glob: str) -> list[Path]:
-    """Image files of `folder` whose stem matches `stem_glob`, in any format OpenCV reads."""
-    return sorted(p for p in folder.glob(stem_glob + ".*") if p.suffix.lower() in IMAGE_SUFFIXES)
 
 
 def session_problems(root: Path, session: str, cameras: list[str], optitrack: str | None) -> list[str]:
@@ -77,8 +79,15 @@ def camera_name_problems(root: Path, sessions: list[str], cameras: list[str]) ->
             f"the files do"]
 
 
-def calibration_problems(root: Path, cameras: list[str], calibration_import: str | None) -> list[str]:
-    """An imported calibration file that is not there, or, when fitting, a camera without views."""
+# what each camera's extrinsics shot shows, by perception.calibration_extrinsics (points: no shot)
+SHOTS = {"table_mat": (TABLE_SHOT, "the camera's view of the table with its calibration mat"),
+         "board": (BOARD_SHOT, "the camera's view of the board lying at its configured pose")}
+
+
+def calibration_problems(root: Path, cameras: list[str], calibration_import: str | None,
+                         extrinsics: str = "table_mat") -> list[str]:
+    """An imported calibration file that is not there, or, when fitting, a camera without its board views
+    or the extrinsics shot the method `extrinsics` (table_mat, board, points) needs."""
     if calibration_import:
         if (root / calibration_import).is_file():
             return []
@@ -87,23 +96,27 @@ def calibration_problems(root: Path, cameras: list[str], calibration_import: str
     out = []
     for cam in cameras:
         folder = root / "raw/calibration" / cam
-        if not images(folder, "intrinsics_*"):
-            out.append(f"raw/calibration/{cam}/intrinsics_*: no views; expected images of the calibration "
+        if not intrinsics_views(folder):
+            out.append(f"raw/calibration/{cam}/{VIEWS_STEM}*: no views; expected images of the calibration "
                        f"board (perception.calibration_board) in any format OpenCV reads")
-        if not images(folder, "table"):
-            out.append(f"raw/calibration/{cam}/table.*: missing; expected the camera's view of the table "
-                       f"with its calibration mat, in any format OpenCV reads")
+        if extrinsics in SHOTS and not extrinsics_shot(folder, SHOTS[extrinsics][0]):
+            out.append(f"raw/calibration/{cam}/{SHOTS[extrinsics][0]}.*: missing; expected "
+                       f"{SHOTS[extrinsics][1]}, in any format OpenCV reads")
     return out
 
 
 def lab_layout_problems(root: Path, sessions: list[str], cameras: list[str], optitrack: str | None,
-                        calibration_import: str | None) -> list[str]:
-    """Every problem of a lab's raw/ against the config, each naming the path and what belongs there."""
+                        calibration_import: str | None, extrinsics: str = "table_mat") -> list[str]:
+    """Every problem of a lab's raw/ against the config, each naming the path and what belongs there
+    (extrinsics: the kind of perception.calibration_extrinsics)."""
     root = Path(root)
     out = name_problems("cameras", cameras) + name_problems("sessions", sessions)
     if not sessions:
         out.append("lab.sessions: empty; list the sessions under raw/sessions/")
-    out += calibration_problems(root, cameras, calibration_import)
+    try:
+        out += calibration_problems(root, cameras, calibration_import, extrinsics)
+    except CaptureLayoutError as err:  # two formats of one shot
+        out.append(str(err))
     out += camera_name_problems(root, sessions, cameras)
     for session in sessions:
         out += session_problems(root, session, cameras, optitrack)
