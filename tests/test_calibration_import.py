@@ -313,6 +313,20 @@ def test_import_alone_in_the_table_frame_runs_unchecked(tmp_path, caplog):
     assert "no OptiTrack" in payload["T_table_from_optitrack_reason"]
 
 
+def test_import_in_the_labs_own_frame_is_kept_and_said(tmp_path, caplog, twin_shots):
+    """world: lab (a pose-only lab): the file's frame is kept as it is, cameras.json says world_frame lab, and
+    table shots are not checked against it (their corners are table points)."""
+    cameras, shots = twin_shots
+    world_cameras, _ = in_world(cameras)
+    export_anipose_toml(world_cameras, tmp_path / "calibration.toml", units="mm")
+    with caplog.at_level(logging.WARNING, logger="pingpong.perception.calibration"):
+        loaded, payload = run_import(tmp_path, tmp_path / "calibration.toml", "lab", units="mm", shots=shots,
+                                     names=["cam0", "cam1"])
+    assert_same_cameras(loaded, world_cameras, atol=1e-9)
+    assert payload["world_frame"] == "lab" and payload["import_checks"] == []
+    assert "world frame: the lab's own" in caplog.text and "there is no table frame" in caplog.text
+
+
 def test_import_alone_with_a_table_from_world_transform(tmp_path):
     cameras = random_cameras(np.random.default_rng(10))
     world_cameras, T_table_from_world = in_world(cameras)

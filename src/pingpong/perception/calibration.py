@@ -589,8 +589,8 @@ def import_calibration(path, units: str | None, world, names: list[str], table_s
     """The configured cameras of an imported calibration file, placed in the table frame as `world` says,
     and the records of the reprojection checks they passed (none: unchecked, logged).
 
-    units: the file's length unit (m, cm, mm); world: 'table', {T_table_from_world: 4x4 (m)} or
-    {table_points: [{xyz_m: [x, y, z], pixels: {camera: [u, v]}}, ...]} (see table_from_world);
+    units: the file's length unit (m, cm, mm); world: 'table', 'lab' (no table), {T_table_from_world:
+    4x4 (m)} or {table_points: [{xyz_m: [x, y, z], pixels: {camera: [u, v]}}, ...]} (see table_from_world);
     table_shots: camera name -> its table.{ext}, where the lab has them; name_map: {name in the file:
     camera name} for the file's cameras named otherwise than the config's.
     """
@@ -601,6 +601,10 @@ def import_calibration(path, units: str | None, world, names: list[str], table_s
     cameras = _configured(reader(path, units=units), names, path, name_map or {})
     T_table_from_world, observations = table_from_world(world, cameras)
     cameras = change_world_frame(cameras, invert_transform(T_table_from_world))
+    if world == "lab":
+        log.warning("world frame: the lab's own (%s: lab), the import's kept as it is; there is no table "
+                    "frame, so only stages that need none (pose) apply", WORLD_CONFIG)
+        table_shots = {}  # the mat's corners are table points: nothing to check them against
     checks = []
     for cam in cameras:
         points, pixels = _observed_by(cam.name, observations)
@@ -651,7 +655,7 @@ def _observed_by(name: str, observations: list) -> tuple[np.ndarray, np.ndarray]
 def table_from_world(world, cameras: list[Camera]) -> tuple[np.ndarray, list]:
     """T_table_from_world (4x4, m) of the import's world frame, and the table points' observations
     (camera, xyz (3,) m, pixel (2,) px) where the config lists them."""
-    if world == "table":
+    if world in ("table", "lab"):  # lab: the import's frame is the lab's own, kept as it is (no table)
         return np.eye(4), []
     if isinstance(world, dict) and set(world) == {"T_table_from_world"}:
         return _rigid_4x4(world["T_table_from_world"]), []
@@ -659,8 +663,8 @@ def table_from_world(world, cameras: list[Camera]) -> tuple[np.ndarray, list]:
         observations = _table_points(world["table_points"], [c.name for c in cameras])
         return fit_table_from_world(cameras, observations), observations
     raise CalibrationError(f"{WORLD_CONFIG} must say how the import's world frame relates to the table: "
-                           f"'table', {{T_table_from_world: 4x4, m}} or {{table_points: [{{xyz_m: [x, y, z], "
-                           f"pixels: {{camera: [u, v]}}}}, ...]}}; got {world!r}")
+                           f"'table', 'lab', {{T_table_from_world: 4x4, m}} or {{table_points: [{{xyz_m: "
+                           f"[x, y, z], pixels: {{camera: [u, v]}}}}, ...]}}; got {world!r}")
 
 
 def _rigid_4x4(value) -> np.ndarray:

@@ -29,7 +29,8 @@ def main(ctx):
         cameras, checks = import_calibration(import_path, p["import_units"], p["import_world"], p["cameras"],
                                              dict(zip(p["cameras"], shots, strict=bool(shots))),
                                              p["max_rms_share"], p["import_names"])
-        record, frame = {"reports": [], "import_checks": checks}, "table"
+        frame = "lab" if p["import_world"] == "lab" else "table"
+        record = {"reports": [], "import_checks": checks}
     else:
         setup = intrinsics_setup(p["board"], p["fit_k3"], p["source"])
         method = extrinsics_method(p["extrinsics"], p["board"], _one(ctx.input.get("scene_points")))
