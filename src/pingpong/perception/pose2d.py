@@ -141,7 +141,7 @@ def tracked_people(keypoints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     keypoints = np.asarray(keypoints, float)
     ids = link_tracklets(keypoints, torso_pixels(keypoints))
     lanes = tracklet_lanes(ids)
-    n_lanes = lanes.max() + 1
+    n_lanes = lanes.max(initial=-1) + 1  # 0 where nobody is ever seen
     people = np.zeros((len(keypoints), n_lanes, 25, 3))
     track = np.full((len(keypoints), n_lanes), -1)
     f, p = np.nonzero(lanes >= 0)
