@@ -1,4 +1,5 @@
-"""2D poses: OpenPose people assigned to the near/far players, checked against the twin's truth.
+"""2D poses: OpenPose people tracked per camera and matched to the near/far players across cameras,
+checked against the twin's truth.
 
 The data are simulated here (a short session, a 2-camera rig at 480x360, OpenPose's errors per
 frame), so CI needs no recordings. A detection's identity is the truth person whose projected
@@ -14,14 +15,20 @@ import pytest
 from pingpong.common.artifacts import Provenance, read_table, write_table
 from pingpong.frames import BODY25, MODEL_JOINT_IDS
 from pingpong.io.openpose_json import BODY25_NAME, KEYPOINT_MODELS, write_keypoints_json
+from pingpong.perception.association import associate
 from pingpong.perception.pose2d import MIN_CONFIDENCE, model_joints, pose2d_table, tracked_people
+from pingpong.perception.pose3d import PoseSceneError, pose3d_table
+from pingpong.perception.scene import default_players_scene
 from pingpong.perception.schemas import POSE2D
-from pingpong.twin.openpose_sim import simulate_openpose
+from pingpong.perception.triangulation import reprojection_gate_px
+from pingpong.twin.openpose_sim import LIMB_SWAPS, simulate_openpose
+from pingpong.twin.players import bystander_joints
 from pingpong.twin.rig import make_rig
 from pingpong.twin.session import FaultRates, simulate_session
 from pingpong.twin.truth import JOINT_COLUMNS
 
 PEOPLE = ("near", "far", "bystander")
+ASSOCIATION_SHARE = 0.02  # config perception.association_share's default
 
 
 def _openpose(camera, bodies, rng, swap_rate=0.01):
@@ -164,3 +171,154 @@ def test_tracklets_follow_one_person(twin):
         mine = truth_px[f, who[f, lane]][:, list(MODEL_JOINT_IDS)]
         errors = np.linalg.norm(joints[f, lane, :, :2] - mine, axis=-1)
         assert np.nanmedian(errors) < 3.0
+
+
+def _associated(cameras, keypoints):
+    """Each camera's OpenPose people (F, P, 25, 3) tracked as pose2d does, then matched across cameras:
+    the tracked people per camera ((F, L, 25, 3), tracklet ids (F, L)) and the choice (F, 2, C) of a lane
+    per camera for near and far (-1: none)."""
+    tracked = [tracked_people(k) for k in keypoints]
+    arrays = []
+    for people, track in tracked:
+        joints = model_joints(people)
+        arrays.append((joints[..., :2], joints[..., 2], track))
+    gate = reprojection_gate_px(cameras, ASSOCIATION_SHARE)
+    return tracked, associate(cameras, arrays, default_players_scene(), gate)
+
+
+def _chosen(tracked, choice):
+    """(F, 2, C, 25, 3) the keypoints each camera gives near and far, zeros where none."""
+    frames = np.arange(len(choice))[:, None]
+    return np.stack([np.where((choice[..., c] >= 0)[..., None, None],
+                              people[frames, np.maximum(choice[..., c], 0)], 0.0)
+                     for c, (people, _) in enumerate(tracked)], axis=2)
+
+
+def _check_choice(cameras, bodies, tracked, choice, min_accuracy=0.99):
+    """Per camera and player, over the frames where the camera detects the player and at least one other
+    camera does too (the association needs two views): the camera gives the player's slot the player's
+    own detection in >= min_accuracy of them. No camera ever gives a slot a bystander."""
+    frames = np.arange(len(choice))[:, None]
+    who = [_identity(people, _projected(cam, bodies)) for cam, (people, _) in zip(cameras, tracked,
+                                                                                  strict=True)]
+    detected = np.stack([(w[..., None] == np.arange(len(PEOPLE))).any(axis=1) for w in who], axis=-1)
+    for c, w in enumerate(who):
+        chosen_as = np.where(choice[..., c] >= 0, w[frames, np.maximum(choice[..., c], 0)], -1)  # (F, 2)
+        assert not (chosen_as == 2).any(), f"cam {c}: a bystander was chosen for a player"
+        for side in range(2):
+            mask = detected[:, side, c] & (detected[:, side].sum(axis=-1) >= 2)
+            accuracy = np.mean(chosen_as[mask, side] == side)
+            assert accuracy >= min_accuracy, f"cam {c} {PEOPLE[side]}: {accuracy:.4f} of frames chosen right"
+    return who, detected
+
+
+def test_sides_match_the_truth(twin):
+    """On the twin's 2-camera rig, a bystander in half the frames: each camera gives each player's slot
+    the player's detection in >= 99 % of the frames where both cameras detect him, a bystander never
+    (the tiny run's 3 cameras: test_association)."""
+    bodies, cameras, keypoints, _ = twin
+    who, detected = _check_choice(cameras, bodies, *_associated(cameras, keypoints))
+    assert (detected[:, 0] & detected[:, 1]).all(axis=-1).mean() > 0.9
+    assert detected[:, 2].any(axis=-1).sum() > 100  # the test saw a bystander
+
+
+def test_bystander_at_the_table_corner_while_the_player_is_unseen(twin):
+    """A bystander just beside the near end (0.12 m from the near area, inside its margin) is never taken
+    for the near player, even in the 0.3 s stretches in which no camera sees the near player: the
+    bystander's tracklets were seen beside the player's before."""
+    bodies, cameras, _, rng = twin
+    bodies = bodies[:450].copy()
+    bystander = bystander_joints(np.arange(len(bodies)) / 100, rng)  # in the room all the time
+    bodies[:, 2] = bystander + np.array([1.6, 1.3, 0.0]) - bystander[:, 8].mean(axis=0) * [1, 1, 0]
+    for start in range(100, len(bodies), 200):
+        bodies[start:start + 30, 0] = np.nan
+    keypoints = [_openpose(camera, bodies, rng) for camera in cameras]
+    who, detected = _check_choice(cameras, bodies, *_associated(cameras, keypoints))
+    assert detected[:, 2].all(axis=-1).mean() > 0.9  # both cameras saw the bystander
+
+
+def test_person_order_and_padding_do_not_matter(twin):
+    """Each frame's people shuffled and padded with undetected people: the same keypoints for each slot."""
+    _, cameras, keypoints, _ = twin
+    people = [k[:300] for k in keypoints]
+    rng = np.random.default_rng(3)
+    shuffled = []
+    for k in people:
+        padded = np.concatenate([k, np.zeros((len(k), 2, 25, 3))], axis=1)
+        shuffled.append(np.stack([frame[rng.permutation(len(frame))] for frame in padded]))
+    before, after = _chosen(*_associated(cameras, people)), _chosen(*_associated(cameras, shuffled))
+    assert (before[..., 2] > 0).any(axis=(-1, -2)).mean() > 0.9
+    np.testing.assert_array_equal(after, before)
+
+
+def _write_folder(folder, people):
+    folder.mkdir()
+    for frame, frame_people in enumerate(people):
+        write_keypoints_json(folder, "s00_cam", frame, frame_people[(frame_people[..., 2] > 0).any(axis=-1)])
+
+
+def test_missing_people_and_empty_frames(twin, tmp_path):
+    """A camera that sees nobody for 50 frames and misses the far player for 60 more: pose2d keeps one row
+    of gaps (person -1) for each empty frame, the association leaves the slots it cannot match in two
+    views empty and errs nowhere else, and pose3d has NaN joints seen by no camera (`_n` 0) there. A camera
+    that never sees anyone, or only undetected people, matches nobody; all cameras empty is an error."""
+    bodies, cameras, keypoints, _ = twin
+    bodies, people = bodies[:300], [k[:300].copy() for k in keypoints]
+    ids = _identity(people[1], _projected(cameras[1], bodies))
+    people[1][100:150] = 0  # nobody detected
+    people[1][200:260][ids[200:260] == 1] = 0  # the far player missed
+    tracked, choice = _associated(cameras, people)
+    assert (choice[100:150] == -1).all() and (choice[200:260, 1] == -1).all()
+    _check_choice(cameras, bodies, tracked, choice, min_accuracy=1.0)
+
+    time_ns = 10_000_000 * np.arange(len(bodies), dtype=np.int64)
+    tables = []
+    for c, k in enumerate(people):
+        _write_folder(tmp_path / f"cam{c}", k)
+        tables.append(pose2d_table(tmp_path / f"cam{c}", time_ns))
+    empty = tables[1][tables[1].time_ns.isin(time_ns[100:150])]
+    assert len(empty) == 50 and (empty.person == -1).all()
+    assert empty.filter(regex="_[uv]$").isna().all(axis=None)
+    assert (empty.filter(regex="_conf$") == 0).all(axis=None)
+    pose, _ = pose3d_table(cameras, tables, default_players_scene(), ASSOCIATION_SHARE, 0.005, 4.0, False)
+    assert len(pose) == 2 * len(time_ns)
+    near, far = (pose[pose.player == p].set_index("time_ns") for p in ("near", "far"))
+    for rows in (near.iloc[100:150], far.iloc[100:150], far.iloc[200:260]):
+        assert rows.filter(regex="_[xyz]$").isna().all(axis=None)
+        assert (rows.filter(regex="_n$") == 0).all(axis=None)
+    assert (near.iloc[200:260].filter(regex="_n$") >= 2).any(axis=1).all()  # the near player still found
+
+    for n_people in (0, 3):  # nobody, or only undetected people, in every frame of one camera
+        _, choice = _associated(cameras, [people[0], np.zeros((len(bodies), n_people, 25, 3))])
+        assert (choice == -1).all()
+    for c in range(2):
+        _write_folder(tmp_path / f"nobody{c}", np.zeros((5, 0, 25, 3)))
+    nobody = [pose2d_table(tmp_path / f"nobody{c}", time_ns[:5]) for c in range(2)]
+    assert all(len(t) == 5 and (t.person == -1).all() for t in nobody)
+    with pytest.raises(PoseSceneError, match="no joint of anyone in 3D in 5 frames"):
+        pose3d_table(cameras, nobody, default_players_scene(), ASSOCIATION_SHARE, 0.005, 4.0, False)
+
+
+def test_limb_swaps_are_undone(twin):
+    """Single-frame swaps of an arm, leg or foot (here in 5 % of frames) are undone from 2D continuity
+    along each tracklet: at least 90 % of the swapped limbs of every person (all joints seen and nearer
+    the other side's truth)."""
+    bodies, cameras, _, rng = twin
+    camera, bodies = cameras[1], bodies[:400]
+    people = _openpose(camera, bodies, rng, swap_rate=0.05)
+    truth_px = _projected(camera, bodies)
+
+    def swapped(people):
+        who = _identity(people, truth_px)
+        truth = truth_px[np.arange(len(people))[:, None], np.maximum(who, 0)]  # (F, P, 25, 2)
+        count = 0
+        for right, left in LIMB_SWAPS:
+            both, mirrored = list(right + left), list(left + right)
+            seen = (people[:, :, both, 2] > 0).all(axis=-1) & (who >= 0)
+            straight = np.linalg.norm(people[:, :, both, :2] - truth[:, :, both], axis=-1).sum(axis=-1)
+            crossed = np.linalg.norm(people[:, :, both, :2] - truth[:, :, mirrored], axis=-1).sum(axis=-1)
+            count += np.sum(seen & (crossed < straight))
+        return count
+
+    before, after = swapped(people), swapped(tracked_people(people)[0])
+    assert before >= 10 and after <= 0.1 * before, (before, after)

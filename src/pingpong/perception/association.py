@@ -3,11 +3,20 @@
 Per frame and slot of the scene (a player, or a subject), one person or none is chosen in each camera:
 among every combination of the cameras' people (at least two cameras), those whose views triangulate
 consistently (each view's median joint reprojection error within its camera's association gate, over
-at least MIN_JOINTS joints) compete; the most views win, then the smallest error. So a bystander seen
-by one camera only never agrees with the other views and is never used, and a person's split tracklet
-(one extra detection) costs no frame: nothing here follows tracklets. Players must stand near their
-area (the median of the fitted joints, table frame); subjects may be anywhere and keep their labels
-from frame to frame by continuity of their 3D position.
+at least MIN_JOINTS joints) compete; the most views win, then (players) one inside the player's area
+over one only within its margin, then the smallest error. So a bystander seen by one camera only never
+agrees with the other views and is never used, and a person's split tracklet (one extra detection)
+costs no frame. Players must stand near their area (the median of the fitted joints, table frame);
+subjects may be anywhere and keep their labels from frame to frame by continuity of their 3D position.
+
+Continuity (`foreign_tracklets`): geometry alone cannot tell a slot's person from someone who
+stands near its area, or who overlaps it in one camera while another camera misses it, in the frames
+where that someone's views agree as well as the person's. But a camera's tracklet that was seen beside
+the slot's chosen person of that camera (same frame, another tracklet) in more frames than it was
+chosen for the slot is someone else; a second pass chooses again without such tracklets. A gate on the
+slot's recent 3D position would need a speed bound and a memory: a player unseen for 0.3 s may move
+as far as a bystander at the table's corner stands from him, and a gate that once follows the wrong
+person keeps following him. The tracklets carry who is who across such gaps already.
 """
 
 from itertools import product
@@ -96,24 +105,39 @@ def associate(cameras: list[Camera], people: list[tuple[np.ndarray, np.ndarray, 
     per frame, -1 where none; a slot is filled by at least two cameras or by none.
 
     people: people_arrays of each camera; gate_px (C,): the association gate per camera, px."""
-    combos, agree, error, centre = combination_fits(cameras, [p[0] for p in people], [p[1] for p in people],
-                                                    gate_px)
-    n_frames, n_cams = len(people[0][0]), len(cameras)
-    n_people = [p[0].shape[1] for p in people]
-    taken = [np.zeros((n_frames, max(n, 1)), bool) for n in n_people]
+    fits = combination_fits(cameras, [p[0] for p in people], [p[1] for p in people], gate_px)
+    ids = [p[2] for p in people]
+    choice = _choose(fits, ids, scene, None)
+    foreign = foreign_tracklets(choice, ids)
+    if any(f.any() for f in foreign):
+        choice = _choose(fits, ids, scene, foreign)
+    return choice
+
+
+def _choose(fits: tuple, ids: list[np.ndarray], scene: Scene, foreign: list[np.ndarray] | None) -> np.ndarray:
+    """associate's choice from combination_fits' output, slot by slot, each camera's person used once per
+    frame; a view of a tracklet foreign to the slot (foreign_tracklets; in subjects mode, foreign to every
+    slot, since labels are set afterwards) is not used."""
+    combos, agree, error, centre = fits
+    n_frames, n_cams = len(ids[0]), len(ids)
+    taken = [np.zeros((n_frames, max(i.shape[1], 1)), bool) for i in ids]
     choice = np.full((n_frames, len(scene.slots), n_cams), -1)
     if not combos:
         return choice
     n_views = np.array([sum(i >= 0 for i in k) for k in combos])[:, None]
-    rank = np.where(agree, n_views - np.minimum(error, 1.0) / 2, -np.inf)  # most views, then least error
     areas = scene.area_costs(centre[..., :2]) if scene.mode == "players" else None
     frames = np.arange(n_frames)
     for s in range(len(scene.slots)):
-        score = rank.copy()
+        # most views, then inside the area rather than within its margin, then the least error
+        outside = areas[..., s] > 0 if areas is not None else 0.0
+        score = np.where(agree, n_views - (outside + np.minimum(error, 1.0)) / 4, -np.inf)
         if areas is not None:
             score[areas[..., s] > scene.area_margin_m] = -np.inf
         for k, combo in enumerate(combos):
             clash = np.any([taken[c][:, i] for c, i in enumerate(combo) if i >= 0], axis=0)
+            if foreign is not None:
+                clash |= np.any([_foreign_view(foreign[c], ids[c][:, i], s, scene)
+                                 for c, i in enumerate(combo) if i >= 0], axis=0)
             score[k, clash] = -np.inf
         best = np.argmax(score, axis=0)
         found = np.isfinite(score[best, frames])
@@ -124,6 +148,34 @@ def associate(cameras: list[Camera], people: list[tuple[np.ndarray, np.ndarray, 
     if scene.mode == "subjects" and len(scene.slots) > 1:
         choice = _stable_labels(choice, centre, combos)
     return choice
+
+
+def _foreign_view(foreign: np.ndarray, tracklet: np.ndarray, slot: int, scene: Scene) -> np.ndarray:
+    """(F,) whether a camera's person (tracklet ids (F,), -1 where none) is foreign to the slot
+    (foreign (S, T) of foreign_tracklets)."""
+    rows = foreign[slot] if scene.mode == "players" else foreign.all(axis=0)
+    return (tracklet >= 0) & rows[np.maximum(tracklet, 0)] if len(rows) else np.zeros(len(tracklet), bool)
+
+
+def foreign_tracklets(choice: np.ndarray, ids: list[np.ndarray]) -> list[np.ndarray]:
+    """Per camera, (S, T) True where tracklet t of the camera is someone other than slot s's person:
+    seen beside the person the camera gave the slot (same frame, another tracklet) in more frames than
+    the camera gave the slot tracklet t. choice (F, S, C) as associate's; ids[c] (F, P) the tracklet id
+    of each of camera c's people (-1 where none)."""
+    frames = np.arange(len(choice))
+    out = []
+    for c, person in enumerate(ids):
+        n_ids = int(person.max(initial=-1)) + 1
+        mine = np.zeros((choice.shape[1], n_ids), int)
+        beside = np.zeros((choice.shape[1], n_ids), int)
+        for s in range(choice.shape[1]):
+            got = choice[:, s, c] >= 0
+            chosen = person[frames[got], choice[got, s, c]]
+            np.add.at(mine[s], chosen, 1)
+            others = person[got][(person[got] >= 0) & (person[got] != chosen[:, None])]
+            np.add.at(beside[s], others, 1)
+        out.append(beside > mine)
+    return out
 
 
 def _stable_labels(choice: np.ndarray, centre: np.ndarray, combos: list[tuple]) -> np.ndarray:
