@@ -618,7 +618,7 @@ def import_calibration(path, units: str | None, world, names: list[str], table_s
                                     max_rms_share))
     if not checks:
         log.warning("%s: the imported calibration is UNCHECKED: no table shots and no table points to "
-                    "reproject; its table frame is trusted as %s says (%r)", path, WORLD_CONFIG, world)
+                    "reproject; its world frame is trusted as %s says (%r)", path, WORLD_CONFIG, world)
     for check in checks:
         log.info("%s: %s reproject at %.2f px RMS (limit %.2f px)", check["camera"], check["points"],
                  check["rms_px"], check["limit_px"])
