@@ -256,10 +256,13 @@ def test_the_logged_agreement_with_plain_dlt_is_as_documented(lab, weighted, cap
     np.testing.assert_allclose(report["dlt_agreement_mm"], expected, atol=1e-6)
     if not weighted:  # >= 90 % keep all views, and then the fit is the plain DLT itself
         assert report["dlt_agreement_mm"] == pytest.approx((0.0, 0.0), abs=1e-6)
+    dropped = report["dlt_agreement_dropped_mm"]  # the joints that dropped a view, where the two differ
+    assert dropped[0] > 1.0 and dropped[1] > dropped[0]  # mm: gross views left out move the joint
     with caplog.at_level(logging.INFO):
         log_pose_report(report)
     median, p90 = expected
     assert f"plain all-view DLT of the same views: median {median:.1f} mm, p90 {p90:.1f} mm" in caplog.text
+    assert f"of those that dropped a view: median {dropped[0]:.1f} mm, p90 {dropped[1]:.1f} mm" in caplog.text
 
 
 def test_a_bystander_seen_by_one_camera_is_never_used(lab):

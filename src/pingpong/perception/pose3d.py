@@ -47,7 +47,8 @@ def pose3d_table(cameras: list[Camera], poses2d: list[pd.DataFrame], scene: Scen
     Raises PoseSceneError when no joint is found.
     The report: per camera and slot the frames it gave the slot a person (`frames_kept`, (C, S)) and the
     frames it gave at least one joint (`frames_used`), the gates, and the agreement of the joints with a
-    plain all-view DLT of the same people's views (`dlt_agreement_mm`: median, p90)."""
+    plain all-view DLT of the same people's views (`dlt_agreement_mm`: median, p90; over the joints that
+    dropped a view, where the two can differ at all: `dlt_agreement_dropped_mm`)."""
     times = _aligned_times(poses2d)
     people = [people_arrays(t, times) for t in poses2d]
     choice = associate(cameras, people, scene, reprojection_gate_px(cameras, association_share))
@@ -86,14 +87,19 @@ def _report(cameras: list[Camera], scene: Scene, choice: np.ndarray, tri: dict, 
         undistorted[seen[:, c], c] = cam.undistort_pixels(flat_px[seen[:, c], c])
     plain = triangulate_dlt(P, undistorted, seen)  # every view of the chosen people, unweighted, none dropped
     gap = 1e3 * np.linalg.norm(tri["points"] - plain, axis=1)
-    gap = gap[np.isfinite(gap)]
     dropped = tri["n_views"] < seen.sum(axis=1)
     fitted = np.isfinite(tri["points"]).all(axis=1)
+    gap_dropped = gap[np.isfinite(gap) & dropped]  # where the two differ at all
+    gap = gap[np.isfinite(gap)]
     return {"slots": list(scene.slots), "cameras": [c.name for c in cameras], "frames": n_frames,
             "frames_kept": (choice >= 0).sum(axis=0).T, "frames_used": used.sum(axis=0).T,
             "frames_found": ((choice >= 0).sum(axis=2) >= 2).sum(axis=0), "gate_px": gate,
-            "dlt_agreement_mm": (float(np.median(gap)), float(np.percentile(gap, 90))) if len(gap) else None,
+            "dlt_agreement_mm": _median_p90(gap), "dlt_agreement_dropped_mm": _median_p90(gap_dropped),
             "views_dropped_share": float(dropped[fitted].mean()) if fitted.any() else 0.0}
+
+
+def _median_p90(values: np.ndarray) -> tuple[float, float] | None:
+    return (float(np.median(values)), float(np.percentile(values, 90))) if len(values) else None
 
 
 def _why_empty(cameras: list[Camera], people: list[tuple], scene: Scene, choice: np.ndarray,

@@ -53,3 +53,6 @@ def log_pose_report(report: dict) -> None:
     if report["dlt_agreement_mm"] is not None:
         logging.info("joints against a plain all-view DLT of the same views: median %.1f mm, p90 %.1f mm",
                      *report["dlt_agreement_mm"])
+    if report["dlt_agreement_dropped_mm"] is not None:
+        logging.info("  of those that dropped a view: median %.1f mm, p90 %.1f mm",
+                     *report["dlt_agreement_dropped_mm"])
