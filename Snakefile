@@ -58,6 +58,7 @@ rule all:
         "reports/tables/strike_error.md",
         "reports/tables/uncertainty.md",
         "reports/tables/robot.md",
+        "reports/summary.md",
         rules.robot_scene.output,
         twin_reports(),
         overlay_figures(),

@@ -17,3 +17,27 @@ rule report_page:
         CONDA_ENV
     script:
         STAGE_SCRIPT
+
+
+# The run's results at a glance (the README's results block for the default run; the HTML report's first
+# page): kept hits and split, the twin's accuracy checks, Table 1 with intervals, Tables 2-4, the verdict.
+rule report_summary:
+    input:
+        curation="reports/tables/curation.csv",
+        predictions="processed/predictions.parquet",
+        strike_error="reports/tables/strike_error.csv",
+        robot="reports/tables/robot.csv",
+        verdict="reports/tables/uncertainty_verdict.csv",
+        perception_accuracy=["reports/tables/perception_accuracy.csv"] if TWIN_ONLY else [],
+        curation_accuracy=["reports/tables/curation_accuracy.csv"] if TWIN_ONLY else [],
+    output:
+        md=report("reports/summary.md", caption="../report/summary.rst", category="0 summary"),
+    params:
+        seed=config["seed"],
+        code=code("report_summary"),
+    log:
+        "logs/report_summary.log",
+    conda:
+        CONDA_ENV
+    script:
+        STAGE_SCRIPT
