@@ -37,3 +37,12 @@ def coverage_bounds(n_cal: int, coverages: np.ndarray, alpha: float) -> tuple[fl
     1 - alpha + 1/(n + 1); widened by 4 standard errors of the mean coverage over the trials given."""
     slack = 4 * np.std(coverages) / math.sqrt(len(coverages))
     return 1 - alpha - slack, 1 - alpha + 1 / (n_cal + 1) + slack
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """With PINGPONG_FUZZ_TABLE set to a path, the fuzz tests' counts per reader written there (the table of
+    docs/fuzz.md: `PINGPONG_FUZZ_TABLE=docs/fuzz_table.md .venv/bin/pytest -q tests -k fuzz`)."""
+    from fuzz_util import TABLE, table_markdown
+
+    if os.environ.get("PINGPONG_FUZZ_TABLE") and TABLE:
+        Path(os.environ["PINGPONG_FUZZ_TABLE"]).write_text(table_markdown())
