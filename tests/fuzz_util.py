@@ -73,7 +73,7 @@ def _call(target: str, args: tuple, kwargs: dict) -> Result:
 
 
 def _serve(conn) -> None:
-    faulthandler.disable()  # pytest's, inherited by the fork: a crash is an outcome here, not a trace to print
+    faulthandler.disable()  # pytest's, inherited by the fork: a crash is an outcome here, not a trace
     while True:
         request = conn.recv()
         if request is None:
