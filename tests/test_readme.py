@@ -42,7 +42,7 @@ def test_the_readme_is_short():
 
 
 def test_results_block_is_the_generated_summary():
-    """The README quotes the default run's summary whole, as docs/results/make_default_run.py wrote it."""
+    """The README quotes the default run's summary whole, as analysis/default_run_summary.py wrote it."""
     assert results_block(README.read_text()) == DEFAULT_RUN.read_text()
     assert re.match(r"Results of the run of commit [0-9a-f]{7,40} ", DEFAULT_RUN.read_text())
 

@@ -1,7 +1,7 @@
 """Writes docs/results/default_run.md: the summary (pingpong.reports.summary) of a finished default run.
 
 Run from the repository root on a clean clone's finished `make run` when a change moves the default run's
-results: `.venv/bin/python docs/results/make_default_run.py RUN_ROOT COMMIT` (the committed file: the run
+results: `.venv/bin/python analysis/default_run_summary.py RUN_ROOT COMMIT` (the committed file: the run
 of 7ef83a4 in /tmp/dflt). The README's results block must then be the new file's content
 (tests/test_readme.py).
 """
@@ -16,7 +16,7 @@ from pingpong.common.artifacts import read_table
 from pingpong.learning.schemas import PREDICTIONS
 from pingpong.reports.summary import summary_markdown
 
-OUT = Path(__file__).with_name("default_run.md")
+OUT = Path(__file__).resolve().parents[1] / "docs/results/default_run.md"
 
 
 def main(run: Path, commit: str) -> None:
