@@ -18,6 +18,7 @@ from pathlib import Path
 
 import pingpong
 from pingpong.common.artifacts import Provenance
+from pingpong.common.atomic import sweep_temporaries
 from pingpong.common.stages import entry_file, entry_module
 from pingpong.common.stderr import fd2_onto
 
@@ -104,6 +105,18 @@ def check_checkout(root: Path) -> None:
                           f"its src/ on PYTHONPATH")
 
 
+def _paths(named: Named) -> list[str]:
+    return [f for v in named.values() for f in (v if isinstance(v, list | tuple) else [v])]
+
+
+def sweep_outputs(ctx: StageContext) -> None:
+    """Remove the temporary files that killed writes of this job's outputs left (only those: the atomic
+    writes' own names beside each output, `pingpong.common.atomic.sweep_temporaries`); a killed camera
+    job leaves one of ~220 MB."""
+    for path in _paths(ctx.output):
+        sweep_temporaries(path)
+
+
 def run_rule(smk=None) -> None:
     """Run the rule's entry `main(ctx)` with its logging and stderr (Python's, where tqdm writes, and file
     descriptor 2, where C libraries write) to the log file."""
@@ -128,6 +141,7 @@ def run_rule(smk=None) -> None:
         logging.basicConfig(stream=stream, level=logging.INFO, force=True,
                             format="%(asctime)s %(levelname)s %(name)s: %(message)s")
         logging.captureWarnings(True)
+        sweep_outputs(ctx)
         try:
             main(ctx)
         except Exception:  # into the log too, where Snakemake's error message sends the reader
