@@ -2,6 +2,7 @@
 calibration stage run on an import alone, placed in the table frame and checked by reprojection."""
 
 import logging
+import re
 import textwrap
 
 import cv2
@@ -16,6 +17,7 @@ from pingpong.common.rigid import apply_transform, make_transform
 from pingpong.common.script import Named, StageContext
 from pingpong.frames import TABLE_HALF_LENGTH, TABLE_HALF_WIDTH
 from pingpong.io.calibration_import import (
+    CalibrationFileError,
     change_world_frame,
     export_anipose_toml,
     export_opencv_yaml,
@@ -133,34 +135,37 @@ def test_pose2sim_snippet_with_four_distortions(tmp_path):
     np.testing.assert_array_equal(cam.t, [0.5, 0.25, 4.0])
 
 
+HAND_WRITTEN_YAML = textwrap.dedent("""\
+    %YAML:1.0
+    ---
+    left:
+       image_size: [ 1280, 720 ]
+       K: !!opencv-matrix
+          rows: 3
+          cols: 3
+          dt: d
+          data: [ 900., 0., 640., 0., 901., 360., 0., 0., 1. ]
+       D: [ -0.1, 0.02, 0., 0. ]
+       rvec: [ 0., 0., 1.5707963267948966 ]
+       t: [ 0.1, 0.2, 3. ]
+    right:
+       width: 1920
+       height: 1080
+       cameraMatrix: [ [ 1400., 0., 960. ], [ 0., 1400., 540. ], [ 0., 0., 1. ] ]
+       distCoeffs: !!opencv-matrix
+          rows: 1
+          cols: 8
+          dt: d
+          data: [ 0.1, -0.01, 0.001, 0.002, 0.003, 0., 0., 0. ]
+       rotation_matrix: [ 1., 0., 0., 0., 1., 0., 0., 0., 1. ]
+       translation: [ -100., 0., 2500. ]
+    """)
+
+
 def test_hand_written_opencv_yaml_with_common_keys(tmp_path):
     """OpenCV 4's '%YAML:1.0' header, one top-level map per camera, keys K / D / rvec / t."""
     path = tmp_path / "calib.yml"
-    path.write_text(textwrap.dedent("""\
-        %YAML:1.0
-        ---
-        left:
-           image_size: [ 1280, 720 ]
-           K: !!opencv-matrix
-              rows: 3
-              cols: 3
-              dt: d
-              data: [ 900., 0., 640., 0., 901., 360., 0., 0., 1. ]
-           D: [ -0.1, 0.02, 0., 0. ]
-           rvec: [ 0., 0., 1.5707963267948966 ]
-           t: [ 0.1, 0.2, 3. ]
-        right:
-           width: 1920
-           height: 1080
-           cameraMatrix: [ [ 1400., 0., 960. ], [ 0., 1400., 540. ], [ 0., 0., 1. ] ]
-           distCoeffs: !!opencv-matrix
-              rows: 1
-              cols: 8
-              dt: d
-              data: [ 0.1, -0.01, 0.001, 0.002, 0.003, 0., 0., 0. ]
-           rotation_matrix: [ 1., 0., 0., 0., 1., 0., 0., 0., 1. ]
-           translation: [ -100., 0., 2500. ]
-        """))
+    path.write_text(HAND_WRITTEN_YAML)
     left, right = read_opencv_calibration(path, units="mm")
     assert (left.name, left.width, left.height) == ("left", 1280, 720)
     np.testing.assert_array_equal(left.K, [[900, 0, 640], [0, 901, 360], [0, 0, 1]])
@@ -252,6 +257,89 @@ def test_not_a_rotation_is_refused(tmp_path):
                     '"R": [[2, 0, 0], [0, 1, 0], [0, 0, 1]], "t": [0, 0, 1], "size": [10, 10]}]}')
     with pytest.raises(ValueError, match=r"c\.json: cameras\[0\]: rotation is not orthonormal"):
         read_opencv_calibration(path, units="m")
+
+
+# Issue 37: implausible values that were read as cameras; each now a CalibrationFileError naming the camera
+TOML_WRONG_VALUES = [
+    ("size = [ 1280, 720,]", "size = [ 0, 0,]", r"image size must be whole pixels from 1 to 65535"),
+    ("size = [ 1280, 720,]", "size = [ 1280.5, 720,]", r"image size must be whole pixels"),
+    ("size = [ 1280, 720,]", 'size = [ "1280", 720,]', r"image size: expected numbers, got '1280'"),
+    ("size = [ 1280, 720,]", "size = 1280", r"size must be \[width, height\], got 1280"),
+    ("[ 900.0, 0.0, 640.0,]", "[ nan, 0.0, 640.0,]", r"camera matrix: expected finite numbers"),
+    ("[ 900.0, 0.0, 640.0,]", "[ -1.0, 0.0, 640.0,]", r"focal lengths fx -1, fy 900: expected positive"),
+    ("[ 900.0, 0.0, 640.0,]", "[ 0.0, 0.0, 640.0,]", r"focal lengths fx 0, fy 900: expected positive"),
+    ("[ 900.0, 0.0, 640.0,]", "[ 90.0, 0.0, 640.0,]", r"focal lengths fx 90, fy 900: .* factor of 2"),
+    ("[ 900.0, 0.0, 640.0,]", "[ true, 0.0, 640.0,]", r"camera matrix: expected numbers, got True"),
+    ("[ 900.0, 0.0, 640.0,]", "[ 900.0, 0.0, 6400.0,]", r"principal point \(6400, 360\) outside the "
+                                                        r"1280x720"),
+    ("[ 0.0, 0.0, 1.0,],]\ndistortions = [ 0.0", "[ 0.0, 1.0, 1.0,],]\ndistortions = [ 0.0",
+     r"camera matrix must be \[\[fx, s, cx\], \[0, fy, cy\], \[0, 0, 1\]\]"),
+    ("[ 0.0, 900.0, 360.0,]", "[ 0.0, 900.0,]", r"camera matrix: rows of unequal length"),
+    ("rotation = [ 0.0, 0.0, 0.0,]", "rotation = [ inf, 0.0, 0.0,]", r"rotation: expected finite numbers"),
+    ("translation = [ 0.0, 0.0, 0.0,]", "translation = [ 0.0, nan, 0.0,]", r"translation: expected finite"),
+    ('name = "B"', "name = 2", r"name must be a string, got 2"),
+]
+
+
+@pytest.mark.parametrize(("old", "new", "message"), TOML_WRONG_VALUES)
+def test_anipose_implausible_values_are_refused(tmp_path, old, new, message):
+    path = tmp_path / "calibration.toml"
+    assert old in ANIPOSE_SNIPPET
+    path.write_text(ANIPOSE_SNIPPET.replace(old, new))
+    with pytest.raises(CalibrationFileError, match=r"calibration\.toml: \[cam_1\]: " + message):
+        read_anipose_toml(path, units="mm")
+
+
+def test_anipose_metadata_not_a_table_and_bytes_not_utf8(tmp_path):
+    path = tmp_path / "calibration.toml"
+    path.write_text("metadata = 3\n" + ANIPOSE_SNIPPET.split("[metadata]")[0])
+    with pytest.raises(CalibrationFileError, match=r"calibration\.toml: \[metadata\]: expected a table"):
+        read_anipose_toml(path, units="mm")
+    path.write_bytes(ANIPOSE_SNIPPET.encode().replace(b'"A"', b'"\xff"'))
+    with pytest.raises(CalibrationFileError, match=r"calibration\.toml: not valid TOML \(UnicodeDecodeError"):
+        read_anipose_toml(path, units="mm")
+
+
+OPENCV_WRONG_VALUES = [  # in the hand-written YAML's camera 'left' (K an !!opencv-matrix, dt d)
+    ("dt: d\n      data: [ 900.", "dt: u\n      data: [ 900.", r"key 'K': matrix dt 'u': expected one of"),
+    ("dt: d\n      data: [ 900.", "dt: i\n      data: [ 900.", r"key 'K': matrix dt 'i'"),
+    ("cols: 3", "cols: -1", r"key 'K': matrix rows 3.0, cols -1.0: expected whole numbers from 1"),
+    ("cols: 3", "cols: 1000000", r"key 'K': matrix rows 3.0, cols 1000000.0: expected"),
+    ("      cols: 3\n", "", r"key 'K': a map with keys \['data', 'dt', 'rows'\] where a matrix"),
+    ("[ 900., 0., 640.,", "[ 0., 640.,", r"key 'K': matrix of 3x3: expected a list of 9 numbers as data, "
+                                          r"got 8"),
+    ("[ 900., 0., 640.,", "[ .nan, 0., 640.,", r"camera matrix: expected finite numbers"),
+    ("[ 900., 0., 640.,", "[ -1., 0., 640.,", r"focal lengths fx -1, fy 901: expected positive"),
+    ("[ 900., 0., 640.,", "[ null, 0., 640.,", r"key 'K': an empty entry where a number"),
+    ("[ 900., 0., 640.,", '[ "900", 0., 640.,', r"key 'K': matrix data: expected numbers"),
+    ("image_size: [ 1280, 720 ]", "image_size: [ 0, 0 ]", r"image size must be whole pixels from 1"),
+    ("D: [ -0.1, 0.02, 0., 0. ]", "D: [ -0.1, .inf, 0., 0. ]", r"distortion: expected finite numbers"),
+    ("t: [ 0.1, 0.2, 3. ]", "t: [ [ [ 0.1 ] ], 0.2, 3. ]", r"key 't': lists nested deeper than"),
+]
+
+
+@pytest.mark.parametrize(("old", "new", "message"), OPENCV_WRONG_VALUES)
+def test_opencv_implausible_values_and_matrix_headers_are_refused(tmp_path, old, new, message):
+    path = tmp_path / "calib.yml"
+    text = HAND_WRITTEN_YAML.split("right:")[0]
+    assert old in text
+    path.write_text(text.replace(old, new))
+    with pytest.raises(CalibrationFileError, match=r"calib\.yml: left: " + message):
+        read_opencv_calibration(path, units="mm")
+
+
+@pytest.mark.parametrize("suffix", ["yaml", "json"])
+def test_opencv_booleans_are_refused_where_filestorage_reads_them_as_1_or_0(tmp_path, suffix):
+    export_opencv_yaml(random_cameras(np.random.default_rng(8), 2), tmp_path / f"c.{suffix}")
+    text = (tmp_path / f"c.{suffix}").read_text()
+    focal = re.search(r'data"?: \[ (\d+\.\d+)', text).group(1)
+    (tmp_path / f"c.{suffix}").write_text(text.replace(focal, "true", 1))
+    with pytest.raises(CalibrationFileError, match=rf"c\.{suffix}: line \d+: 'true' where a number or a "
+                                                   r"string was expected \(OpenCV would read it as 1\)"):
+        read_opencv_calibration(tmp_path / f"c.{suffix}", units="m")
+    (tmp_path / f"c.{suffix}").write_text(text.replace('name: cam0', 'name: "true"'))  # a string: fine
+    assert read_opencv_calibration(tmp_path / f"c.{suffix}", units="m")[0].name == (
+        "true" if suffix == "yaml" else "cam0")
 
 
 

@@ -19,8 +19,17 @@ millimetres), so readers and writers take `units` explicitly; the writers also r
 (top-level `units`, TOML [metadata] units) and the readers refuse a file that states others. The readers
 also refuse a rig that the units make implausible (`check_camera_spacing`): metres read as millimetres
 put the cameras millimetres apart.
+
+Every value is checked where it enters, and a file that fails is refused with a `CalibrationFileError`
+naming the file, the camera and what was expected: numbers finite (never a string, a boolean or an empty
+entry read as 0), focal lengths positive, the principal point inside the image, the image size positive
+whole pixels, the rotation a rotation. OpenCV matrices (`!!opencv-matrix`) are read from their `rows`,
+`cols`, `dt` and `data` by this module, never by cv2's FileNode.mat(): a header that does not match its
+data (`cols: -1`, a huge size) corrupts the heap inside it, and an integer `dt` saturates values
+(a focal length of 1681 read as 255 with `dt: u`), so the header is checked and `dt` must be f or d.
 """
 
+import re
 import tomllib
 from pathlib import Path
 
@@ -46,51 +55,115 @@ OPENCV_KEYS = {
     "t": ("tvec", "t", "T", "translation"),
 }
 ANIPOSE_KEYS = ("size", "matrix", "distortions", "rotation", "translation")
+MATRIX_DTYPES = ("f", "d")  # OpenCV's float and double: integer types would saturate or truncate values
+MAX_MATRIX_ELEMENTS = 64  # a camera's largest matrix is 3x3 (or 14 distortion coefficients)
+QUOTED = re.compile(r""""[^"]*"|'[^']*'""")
+BOOLEAN = re.compile(r"(?<![\w.\-])(true|false)(?![\w.\-])")
+MAX_IMAGE_SIDE = 65_535  # pixels: the largest side an image format of a camera stream can state
+
+
+class CalibrationFileError(ValueError):
+    """A calibration file that cannot be read as a rig of cameras; the message names the file and where."""
 
 
 def _unit_scale(units: str) -> float:
     if units not in UNITS_M:
-        raise ValueError(f"units must be one of {sorted(UNITS_M)}, got {units!r}")
+        raise CalibrationFileError(f"units must be one of {sorted(UNITS_M)}, got {units!r}")
     return UNITS_M[units]
 
 
 def _check_stated_units(stated: str | None, units: str, where: str) -> None:
     if stated is not None and stated != units:
-        raise ValueError(f"{where}: the file states units {stated!r} but {units!r} were asked for")
+        raise CalibrationFileError(f"{where}: the file states units {stated!r} but {units!r} were asked for")
 
 
-def _distortion5(dist: np.ndarray, where: str) -> np.ndarray:
+def _short(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def _check_leaves(value, where: str, what: str, depth: int) -> None:
+    """Refuse anything but numbers in lists no deeper than a matrix's rows (a boolean is not a number)."""
+    if isinstance(value, np.ndarray) and value.dtype.kind == "f":
+        return
+    if isinstance(value, list | tuple) and depth < 2:
+        for item in value:
+            _check_leaves(item, where, what, depth + 1)
+    elif isinstance(value, bool) or not isinstance(value, int | float):
+        raise CalibrationFileError(f"{where}: {what}: expected numbers, got {_short(value)}")
+
+
+def _numbers(value, where: str, what: str) -> np.ndarray:
+    """`value` (a number, a list or a list of rows of numbers) as an array of finite floats."""
+    _check_leaves(value, where, what, 0)
+    try:
+        array = np.asarray(value, float)
+    except ValueError:  # rows of unequal length
+        raise CalibrationFileError(f"{where}: {what}: rows of unequal length in {_short(value)}") from None
+    if not np.isfinite(array).all():
+        raise CalibrationFileError(f"{where}: {what}: expected finite numbers, got {_short(value)}")
+    return array
+
+
+def _image_size(width, height, where: str) -> tuple[int, int]:
+    size = _numbers([width, height], where, "image size").ravel()
+    if size.size != 2 or np.any(size != np.round(size)) or not np.all((size >= 1) & (size <= MAX_IMAGE_SIDE)):
+        raise CalibrationFileError(f"{where}: image size must be whole pixels from 1 to {MAX_IMAGE_SIDE}, "
+                                   f"got {size.tolist()}")
+    return int(size[0]), int(size[1])
+
+
+def _camera_matrix(K, width: int, height: int, where: str) -> np.ndarray:
+    """The 3x3 K, checked: positive focal lengths of near square pixels, the principal point in the image."""
+    K = _numbers(K, where, "camera matrix").reshape(-1)
+    if K.size != 9:
+        raise CalibrationFileError(f"{where}: need a 3x3 camera matrix, got {K.size} values")
+    K = K.reshape(3, 3)
+    (fx, _, cx), (_, fy, cy) = K[0], K[1]
+    if K[1, 0] != 0 or K[2].tolist() != [0, 0, 1]:
+        raise CalibrationFileError(f"{where}: camera matrix must be [[fx, s, cx], [0, fy, cy], [0, 0, 1]], "
+                                   f"got {K.tolist()}")
+    if not (fx > 0 and fy > 0 and 0.5 <= fy / fx <= 2):
+        raise CalibrationFileError(f"{where}: focal lengths fx {fx:g}, fy {fy:g}: expected positive pixels "
+                                   "within a factor of 2 of each other (pixels are near square)")
+    if not (0 <= cx <= width and 0 <= cy <= height):
+        raise CalibrationFileError(f"{where}: principal point ({cx:g}, {cy:g}) outside the {width}x{height} "
+                                   "image")
+    return K
+
+
+def _distortion5(dist, where: str) -> np.ndarray:
     """The 5 coefficients (k1 k2 p1 p2 k3) that Camera models; 4 are padded with k3 = 0."""
-    d = np.asarray(dist, float).ravel()
+    d = _numbers(dist, where, "distortion").ravel()
     if len(d) < 4 or np.any(d[5:] != 0):
-        raise ValueError(f"{where}: distortion needs 4 or 5 coefficients (k1 k2 p1 p2 [k3]), "
-                         f"got {d.tolist()}; the rational, thin-prism and tilted models are not supported")
+        raise CalibrationFileError(f"{where}: distortion needs 4 or 5 coefficients (k1 k2 p1 p2 [k3]), "
+                                     f"got {d.tolist()}; the rational, thin-prism and tilted models are "
+                                   "not supported")
     return np.pad(d[:5], (0, 5 - min(len(d), 5)))
 
 
-def _rotation(value: np.ndarray, where: str) -> np.ndarray:
+def _rotation(value, where: str) -> np.ndarray:
     """3x3 rotation from a matrix or a Rodrigues vector, checked to be a rotation."""
-    v = np.asarray(value, float)
+    v = _numbers(value, where, "rotation")
     if v.size == 3:
         R = cv2.Rodrigues(v.reshape(3, 1))[0]
     elif v.size == 9:
         R = v.reshape(3, 3)
     else:
-        raise ValueError(f"{where}: rotation must be a 3x3 matrix or a Rodrigues 3-vector, "
-                         f"got {v.size} values")
+        raise CalibrationFileError(f"{where}: rotation must be a 3x3 matrix or a Rodrigues 3-vector, "
+                                     f"got {v.size} values")
     if not (np.allclose(R.T @ R, np.eye(3), atol=1e-6) and np.linalg.det(R) > 0):
-        raise ValueError(f"{where}: rotation is not orthonormal with determinant +1")
+        raise CalibrationFileError(f"{where}: rotation is not orthonormal with determinant +1")
     return R
 
 
 def _camera(name: str, K, dist, rotation, t, width, height, scale: float, where: str) -> Camera:
-    K = np.asarray(K, float).reshape(-1)
-    t = np.asarray(t, float).reshape(-1)
-    if K.size != 9 or t.size != 3:
-        raise ValueError(f"{where}: need a 3x3 camera matrix and a 3-vector translation, got {K.size} and "
-                         f"{t.size} values")
-    return Camera(name=name, K=K.reshape(3, 3), dist=_distortion5(dist, where), R=_rotation(rotation, where),
-                  t=t * scale, width=int(round(float(width))), height=int(round(float(height))))
+    width, height = _image_size(width, height, where)
+    t = _numbers(t, where, "translation").reshape(-1)
+    if t.size != 3:
+        raise CalibrationFileError(f"{where}: need a 3-vector translation, got {t.size} values")
+    return Camera(name=name, K=_camera_matrix(K, width, height, where), dist=_distortion5(dist, where),
+                  R=_rotation(rotation, where), t=t * scale, width=width, height=height)
 
 
 def check_camera_spacing(cameras: list[Camera], units: str, where: str) -> None:
@@ -105,7 +178,7 @@ def check_camera_spacing(cameras: list[Camera], units: str, where: str) -> None:
     fits = [u for u, c in rescaled.items() if _spacing_problem(names, c) is None]
     advice = (f"is units {units!r} right for a file in {UNIT_NAMES[fits[0]]}?" if fits
               else "check the file's extrinsics and its units")
-    raise ValueError(f"{where}: {problem} with units {units!r}: {advice}")
+    raise CalibrationFileError(f"{where}: {problem} with units {units!r}: {advice}")
 
 
 def _spacing_problem(names: list[str], centres: np.ndarray) -> str | None:
@@ -144,27 +217,33 @@ def read_anipose_toml(path: str | Path, *, units: str) -> list[Camera]:
     try:
         with path.open("rb") as f:
             doc = tomllib.load(f)
-    except tomllib.TOMLDecodeError as err:
-        raise ValueError(f"{path}: not valid TOML ({err})") from None
-    _check_stated_units(doc.get("metadata", {}).get("units"), units, f"{path}: [metadata]")
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError, RecursionError) as err:
+        raise CalibrationFileError(f"{path}: not valid TOML ({type(err).__name__}: {err})") from None
+    metadata = doc.get("metadata", {})
+    if not isinstance(metadata, dict):
+        raise CalibrationFileError(f"{path}: [metadata]: expected a table, got {_short(metadata)}")
+    _check_stated_units(metadata.get("units"), units, f"{path}: [metadata]")
     cameras = []
     for section, cam in doc.items():
         if section == "metadata":
             continue
         where = f"{path}: [{section}]"
         if not isinstance(cam, dict):
-            raise ValueError(f"{where}: expected a camera table")
+            raise CalibrationFileError(f"{where}: expected a camera table")
         missing = [k for k in ANIPOSE_KEYS if k not in cam]
         if missing:
-            raise ValueError(f"{where}: missing key(s) {missing}")
-        if cam.get("fisheye", False):
-            raise ValueError(f"{where}: fisheye cameras are not supported")
-        if len(cam["size"]) != 2:
-            raise ValueError(f"{where}: size must be [width, height], got {cam['size']}")
-        cameras.append(_camera(str(cam.get("name", section)), cam["matrix"], cam["distortions"],
+            raise CalibrationFileError(f"{where}: missing key(s) {missing}")
+        if cam.get("fisheye", False) is not False:
+            raise CalibrationFileError(f"{where}: fisheye cameras are not supported")
+        if not isinstance(cam["size"], list) or len(cam["size"]) != 2:
+            raise CalibrationFileError(f"{where}: size must be [width, height], got {_short(cam['size'])}")
+        name = cam.get("name", section)
+        if not isinstance(name, str):
+            raise CalibrationFileError(f"{where}: name must be a string, got {_short(name)}")
+        cameras.append(_camera(name, cam["matrix"], cam["distortions"],
                                cam["rotation"], cam["translation"], *cam["size"], scale, where))
     if not cameras:
-        raise ValueError(f"{path}: no camera tables")
+        raise CalibrationFileError(f"{path}: no camera tables")
     check_camera_spacing(cameras, units, str(path))
     return cameras
 
@@ -194,40 +273,81 @@ def _is_matrix(node: "cv2.FileNode") -> bool:
     return node.isMap() and "data" in node.keys()
 
 
-def _node_value(node: "cv2.FileNode"):
-    """A FileStorage node as a number, string, list or numpy array (for !!opencv-matrix)."""
+def _node_value(node: "cv2.FileNode", depth: int = 0):
+    """A FileStorage node as a number, string, list (no deeper than a matrix's rows) or numpy array (for
+    !!opencv-matrix); an empty entry is refused, not read as 0."""
     if node.isMap():
-        if not _is_matrix(node):
-            raise ValueError("a map where a matrix or a list was expected")
-        try:
-            return node.mat()
-        except cv2.error as err:
-            raise ValueError(f"unreadable matrix ({err})") from None
-    if node.isSeq():
-        return [_node_value(node.at(i)) for i in range(node.size())]
-    return node.string() if node.isString() else node.real()
+        return _matrix(node)
+    if node.isSeq() and depth < 2:
+        return [_node_value(node.at(i), depth + 1) for i in range(node.size())]
+    if node.isString():
+        return node.string()
+    if node.isInt() or node.isReal():
+        return node.real()
+    raise CalibrationFileError("lists nested deeper than a matrix's rows" if node.isSeq()
+                               else "an empty entry where a number, a list or a matrix was expected")
+
+
+def _matrix(node: "cv2.FileNode") -> np.ndarray:
+    """An !!opencv-matrix from its rows, cols, dt and data, each checked (never FileNode.mat(): module
+    docstring)."""
+    keys = set(node.keys())
+    if not {"rows", "cols", "dt", "data"} <= keys:
+        raise CalibrationFileError(f"a map with keys {sorted(keys)} where a matrix (rows, cols, dt, data) or "
+                                   "a list was expected")
+    rows, cols, dt, data = (node.getNode(k) for k in ("rows", "cols", "dt", "data"))
+    shape = (int(rows.real()), int(cols.real())) if rows.isInt() and cols.isInt() else None
+    if shape is None or min(shape) < 1 or shape[0] * shape[1] > MAX_MATRIX_ELEMENTS:
+        raise CalibrationFileError(f"matrix rows {_short(_raw(rows))}, cols {_short(_raw(cols))}: expected "
+                                   f"whole numbers from 1 with at most {MAX_MATRIX_ELEMENTS} elements")
+    if not dt.isString() or dt.string() not in MATRIX_DTYPES:
+        raise CalibrationFileError(f"matrix dt {_short(_raw(dt))}: expected one of {list(MATRIX_DTYPES)} "
+                                   "(an integer type would saturate or truncate the values)")
+    if not data.isSeq() or data.size() != shape[0] * shape[1]:
+        raise CalibrationFileError(f"matrix of {shape[0]}x{shape[1]}: expected a list of "
+                                   f"{shape[0] * shape[1]} numbers as data, got "
+                                   f"{data.size() if data.isSeq() else 'no list'}")
+    values = [_node_value(data.at(i), 2) for i in range(data.size())]
+    if any(isinstance(v, str) for v in values):
+        raise CalibrationFileError(f"matrix data: expected numbers, got {_short(values)}")
+    array = np.array(values, np.float32 if dt.string() == "f" else float).reshape(shape)
+    return array.astype(float)
+
+
+def _raw(node: "cv2.FileNode"):
+    """A scalar node's value for a message (a string, a number, or what kind of node it is)."""
+    if node.isString():
+        return node.string()
+    if node.isInt() or node.isReal():
+        return node.real()
+    return "a list" if node.isSeq() else "a map" if node.isMap() else "nothing"
 
 
 def _opencv_camera(node: "cv2.FileNode", default_name: str, scale: float, where: str) -> Camera:
+    if not node.isMap():
+        raise CalibrationFileError(f"{where}: expected a camera map, got {_short(_raw(node))}")
     keys = set(node.keys())
 
     def get(field: str, names: tuple[str, ...]):
         found = [n for n in names if n in keys]
         if not found:
-            raise ValueError(f"{where}: missing {field!r} (one of the keys {list(names)})")
+            raise CalibrationFileError(f"{where}: missing {field!r} (one of the keys {list(names)})")
         try:
             return _node_value(node.getNode(found[0]))
         except ValueError as err:
-            raise ValueError(f"{where}: key {found[0]!r}: {err}") from None
+            raise CalibrationFileError(f"{where}: key {found[0]!r}: {err}") from None
 
     if {"image_width", "image_height"} <= keys or {"width", "height"} <= keys:
         w_key, h_key = ("image_width", "image_height") if "image_width" in keys else ("width", "height")
         width, height = get("width", (w_key,)), get("height", (h_key,))
     else:
-        size = np.asarray(get("image size", ("image_size", "size")), float).ravel()
+        size = _numbers(get("image size", ("image_size", "size")), where, "image size").ravel()
         if size.size != 2:
-            raise ValueError(f"{where}: image size must be [width, height], got {size.tolist()}")
+            raise CalibrationFileError(f"{where}: image size must be [width, height], got {size.tolist()}")
         width, height = size
+    if "name" in keys and not node.getNode("name").isString():
+        raise CalibrationFileError(f"{where}: name must be a string, got "
+                                   f"{_short(_raw(node.getNode('name')))}")
     name = node.getNode("name").string() if "name" in keys else default_name
     return _camera(name, *(get(field, names) for field, names in OPENCV_KEYS.items()), width, height,
                    scale, where)
@@ -242,30 +362,50 @@ def read_opencv_calibration(path: str | Path, *, units: str) -> list[Camera]:
     try:
         fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
     except (cv2.error, SystemError) as err:
-        raise ValueError(f"{path}: not a readable OpenCV YAML/JSON file ({err.__cause__ or err})") from None
+        raise CalibrationFileError(f"{path}: not a readable OpenCV YAML/JSON file "
+                                   f"({err.__cause__ or err})") from None
     try:
-        root = fs.root()
-        if not root.isMap():
-            raise ValueError(f"{path}: expected a map at the top level")
-        if "units" in root.keys():
-            _check_stated_units(root.getNode("units").string(), units, f"{path}: units")
-        if "cameras" in root.keys():
-            seq = root.getNode("cameras")
-            if not seq.isSeq():
-                raise ValueError(f"{path}: 'cameras' must be a sequence of camera maps")
-            nodes = [(f"cam{i}", seq.at(i), f"{path}: cameras[{i}]") for i in range(seq.size())]
-        elif set(OPENCV_KEYS["K"]) & set(root.keys()):  # a single camera at the top level
-            nodes = [(path.stem, root, str(path))]
-        else:
-            nodes = [(key, root.getNode(key), f"{path}: {key}") for key in root.keys()
-                     if root.getNode(key).isMap() and not _is_matrix(root.getNode(key))]
-        if not nodes:
-            raise ValueError(f"{path}: no cameras (expected a 'cameras' sequence or one map per camera)")
-        cameras = [_opencv_camera(node, name, scale, where) for name, node, where in nodes]
+        _refuse_booleans(path)
+        cameras = _opencv_cameras(fs.root(), path, scale, units)
+    except UnicodeDecodeError as err:  # a key or string that is not UTF-8
+        raise CalibrationFileError(f"{path}: not a readable OpenCV YAML/JSON file ({err})") from None
     finally:
         fs.release()
     check_camera_spacing(cameras, units, str(path))
     return cameras
+
+
+def _refuse_booleans(path: Path) -> None:
+    """FileStorage reads a bare `true` or `false` as the integer 1 or 0, and its nodes cannot tell them
+    from numbers: a calibration holds none, so one in the text (outside quotes and comments) is refused."""
+    for number, line in enumerate(path.read_bytes().decode("utf-8", "replace").splitlines(), 1):
+        bare = QUOTED.sub('""', line).split("#")[0]
+        found = BOOLEAN.search(bare)
+        if found:
+            raise CalibrationFileError(f"{path}: line {number}: {found.group()!r} where a number or a string "
+                                       "was expected (OpenCV would read it as "
+                                       f"{int(found.group() == 'true')})")
+
+
+def _opencv_cameras(root: "cv2.FileNode", path: Path, scale: float, units: str) -> list[Camera]:
+    if not root.isMap():
+        raise CalibrationFileError(f"{path}: expected a map at the top level")
+    if "units" in root.keys():
+        _check_stated_units(_raw(root.getNode("units")), units, f"{path}: units")
+    if "cameras" in root.keys():
+        seq = root.getNode("cameras")
+        if not seq.isSeq():
+            raise CalibrationFileError(f"{path}: 'cameras' must be a sequence of camera maps")
+        nodes = [(f"cam{i}", seq.at(i), f"{path}: cameras[{i}]") for i in range(seq.size())]
+    elif set(OPENCV_KEYS["K"]) & set(root.keys()):  # a single camera at the top level
+        nodes = [(path.stem, root, str(path))]
+    else:
+        nodes = [(key, root.getNode(key), f"{path}: {key}") for key in root.keys()
+                 if root.getNode(key).isMap() and not _is_matrix(root.getNode(key))]
+    if not nodes:
+        raise CalibrationFileError(f"{path}: no cameras (expected a 'cameras' sequence or one map per "
+                                   "camera)")
+    return [_opencv_camera(node, name, scale, where) for name, node, where in nodes]
 
 
 def export_opencv_yaml(cameras: list[Camera], path: str | Path, *, units: str = "m") -> None:
