@@ -23,7 +23,8 @@ from test_calibration_import import random_cameras
 from pingpong.io.calibration_import import export_anipose_toml, export_opencv_yaml
 
 SUMMARY = "test_fuzz_calibration:cameras_summary"
-EXAMPLES = 200  # random damages per format; with the wrong values all formats run in a few seconds
+EXAMPLES = 300  # random damages per format; with the wrong values all formats run in about a second
+WRONG = 100  # files with a wrong value in place of a number, per format
 NUMERIC = set(b"0123456789.-+eE, \n\t")
 NUMBER = re.compile(rb"(?<![\w.])-?\d+\.?\d*(?:[eE][-+]?\d+)?(?![\w.])")
 WRONG_VALUES = {  # what each format writes for NaN, infinity, a string, a boolean, nothing
@@ -100,7 +101,7 @@ def test_fuzz_calibration(reader, tmp_path, fmt):
     assert expected is not None and len(expected) == 3
     rng = np.random.default_rng(37)
     outcomes = []
-    for i in range(EXAMPLES + 60):
+    for i in range(EXAMPLES + WRONG):
         bad = damaged(data, rng)[1] if i < EXAMPLES else with_wrong_value(data, fmt, rng)
         path = tmp_path / f"calibration.{fmt}"
         path.write_bytes(bad)

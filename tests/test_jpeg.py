@@ -1,14 +1,15 @@
 """pingpong.io.jpeg.decode_jpeg: clean frames decode as cv2 decodes them, damaged ones say so, no leaks."""
 
 import os
+import re
 
 import cv2
 import numpy as np
 import pytest
-from hypothesis import assume, given
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from pingpong.io.jpeg import RST, decode_jpeg, decode_jpeg_rows
+from pingpong.io.jpeg import RST, decode_jpeg, decode_jpeg_rows, header_problem
 from pingpong.twin import render
 
 WIDTH, HEIGHT = 1440, 1080
@@ -146,3 +147,46 @@ def test_a_jpeg_without_a_restart_marker_per_row_decodes_whole_and_damage_still_
     assert reason == whole_reason
     np.testing.assert_array_equal(image, whole_image)
     assert ("Corrupt JPEG data" in reason) == case.startswith("a ")
+
+
+# --- the header checked before any decode (issue 37: a header claiming 30000 x 30000 decoded for 12 s into
+# 5.3 GB) --------------------------------------------------------------------------------------------------
+
+def with_size(data: bytes, width: int, height: int) -> bytes:
+    sof = data.index(b"\xff\xc0")
+    return data[:sof + 5] + height.to_bytes(2, "big") + width.to_bytes(2, "big") + data[sof + 9:]
+
+
+@pytest.mark.parametrize(("width", "height", "reason"), [
+    (30000, 30000, "frame header states 30000x30000 pixels, more than the 64 Mpx cap"),
+    (8000, 8000, r"frame header states 8000x8000 pixels \(3000000 blocks, at least 750000 bytes coded\) but "
+                 r"only \d+ bytes follow it: truncated, or a damaged header"),
+])
+def test_a_header_larger_than_the_cap_or_its_stream_is_refused_before_decoding(clean, monkeypatch, width,
+                                                                                height, reason):
+    def no_decode(*args):
+        raise AssertionError("decoded")
+
+    monkeypatch.setattr("pingpong.io.jpeg._imdecode_capturing", no_decode)
+    data = with_size(clean, width, height)
+    for image, why in [decode_jpeg(data), decode_jpeg(data, 8), decode_jpeg_rows(data, 0, 8)]:
+        assert image is None and re.fullmatch(reason, why)
+
+
+@settings(max_examples=40, deadline=None)
+@given(width=st.integers(1, 700), height=st.integers(1, 700), chroma=st.sampled_from(["444", "420", "gray"]),
+       optimize=st.booleans(), level=st.integers(0, 255))
+def test_no_valid_baseline_frame_is_refused_by_its_header(width, height, chroma, optimize, level):
+    """A flat frame (the fewest bits a block can take; optimised Huffman tables: 1-bit codes) of any size
+    and subsampling passes the header's length check and decodes clean."""
+    image = np.full((height, width, 3), level, np.uint8)
+    params = [cv2.IMWRITE_JPEG_QUALITY, 50, cv2.IMWRITE_JPEG_OPTIMIZE, int(optimize)]
+    if chroma == "gray":
+        image = image[..., 0]
+    else:
+        params += [cv2.IMWRITE_JPEG_SAMPLING_FACTOR, {"444": cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444,
+                                                      "420": cv2.IMWRITE_JPEG_SAMPLING_FACTOR_420}[chroma]]
+    data = cv2.imencode(".jpg", image, params)[1].tobytes()
+    assert header_problem(data) == ""
+    decoded, reason = decode_jpeg(data)
+    assert reason == "" and decoded.shape == (height, width, 3)

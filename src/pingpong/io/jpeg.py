@@ -27,6 +27,13 @@ random single-byte flips in the entropy-coded data of a 1440x1080 twin frame, 33
 27 decoded silently to other pixels. What comes back clean is what libjpeg accepted; mcap_io's CRC
 check of the MCAP chunks is what catches damage in transit.
 
+A header is checked before anything decodes: libjpeg believes the size a frame header (SOF) states and
+decodes a 30000 x 30000 header on a short stream for 12 s into 5.3 GB, padding the missing data. A frame
+of more than `MAX_PIXELS` is refused, and a baseline (Huffman, sequential) one whose stream is shorter
+than its blocks can be (each 8x8 block codes at least a DC and an end-of-block symbol, 2 bits) is refused
+as truncated or misstated; progressive and arithmetic-coded frames can code runs of empty blocks in a few
+bits, so for them the pixel cap alone bounds the work.
+
 While a decode runs, anything any thread writes to fd 2 lands in that decode's reason (and is not
 shown): decodes hold a lock among themselves, and the decode itself takes milliseconds.
 """
@@ -48,6 +55,9 @@ SOI, EOI = b"\xff\xd8", b"\xff\xd9"  # start and end of image markers
 SOF_BASELINE, DRI, SOS = (0xC0, 0xC1), 0xDD, 0xDA  # frame headers a row band can be cut from; markers
 RST = re.compile(rb"\xff[\xd0-\xd7]")  # in entropy-coded data 0xFF is stuffed (0xFF00) unless a marker
 PADDING = b"\x00\xff"  # bytes some cameras append after the end of image
+MAX_PIXELS = 64_000_000  # a frame header may state at most 64 Mpx (a 4K camera's frame is 8.3 Mpx)
+SOF_ANY = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}  # frame headers (C4, C8, CC: DHT, JPG, DAC)
+NO_LENGTH = frozenset(range(0xD0, 0xDA)) | {0x01}  # RSTn, SOI, EOI, TEM: markers without a length
 _LOCK = threading.Lock()
 _capture = None  # (pid, file) of this process's capture file: a forked child makes its own
 
@@ -81,6 +91,50 @@ def _imdecode_capturing(data: bytes, flag: int) -> tuple[np.ndarray | None, list
     return image, [line.strip() for line in text.splitlines() if line.strip()] + raised
 
 
+def _markers(data: bytes):
+    """(marker, offset of its 0xFF) of the header's segments up to and with the first SOS, read as libjpeg
+    reads them: bytes between segments are skipped to the next 0xFF, fill bytes (0xFF 0xFF) too."""
+    i = 2
+    while True:
+        i = data.find(b"\xff", i)
+        while 0 <= i < len(data) - 1 and data[i + 1] in (0x00, 0xFF):  # stuffed or fill byte: not a marker
+            i = data.find(b"\xff", i + 1)
+        if i < 0 or i + 1 >= len(data):
+            return
+        marker = data[i + 1]
+        yield marker, i
+        if marker == SOS or marker == 0xD9:
+            return
+        i += 2 if marker in NO_LENGTH else 2 + int.from_bytes(data[i + 2:i + 4], "big")
+
+
+def _ceil(a: int, b: int) -> int:
+    return -(a // -b)
+
+
+def header_problem(data: bytes) -> str:
+    """'' or why the first frame header must not be decoded: more than MAX_PIXELS, or (baseline) more
+    blocks than the stream's bytes can code (module docstring)."""
+    sof = next((i for marker, i in _markers(data) if marker in SOF_ANY), None)
+    if sof is None or sof + 10 > len(data):
+        return ""  # no frame header: libjpeg refuses such a stream by itself
+    height, width = int.from_bytes(data[sof + 5:sof + 7], "big"), int.from_bytes(data[sof + 7:sof + 9], "big")
+    if width * height > MAX_PIXELS:
+        return f"frame header states {width}x{height} pixels, more than the {MAX_PIXELS / 1e6:g} Mpx cap"
+    factors = data[sof + 11:sof + 10 + 3 * data[sof + 9]:3]  # per component: horizontal << 4 | vertical
+    if data[sof + 1] not in SOF_BASELINE or not factors or min(f >> 4 for f in factors) == 0 \
+            or min(f & 15 for f in factors) == 0:
+        return ""  # progressive or arithmetic (no lower bound on its length), or a header libjpeg refuses
+    h_max, v_max = max(f >> 4 for f in factors), max(f & 15 for f in factors)
+    blocks = sum(_ceil(_ceil(width * (f >> 4), h_max), 8) * _ceil(_ceil(height * (f & 15), v_max), 8)
+                 for f in factors)  # each component's 8x8 blocks, subsampled where its factors are smaller
+    after = len(data) - sof
+    if after < blocks / 4:
+        return (f"frame header states {width}x{height} pixels ({blocks} blocks, at least {blocks // 4} bytes "
+                f"coded) but only {after} bytes follow it: truncated, or a damaged header")
+    return ""
+
+
 def decode_jpeg(data: bytes, reduction: int = 1) -> tuple[np.ndarray | None, str]:
     """(BGR image, '' when clean or why it is damaged) of JPEG bytes; None where nothing decodes.
 
@@ -91,6 +145,9 @@ def decode_jpeg(data: bytes, reduction: int = 1) -> tuple[np.ndarray | None, str
         raise ValueError(f"reduction {reduction!r}: expected one of {sorted(REDUCED_FLAGS)}")
     if not data.startswith(SOI):
         return None, f"{len(data)} bytes, not a JPEG (no start-of-image marker)" if data else "empty buffer"
+    problem = header_problem(data)
+    if problem:
+        return None, problem
     image, reasons = _imdecode_capturing(data, REDUCED_FLAGS[reduction])
     if image is None and not reasons:
         reasons.append(f"{len(data)} bytes do not decode")
@@ -137,7 +194,7 @@ def decode_jpeg_rows(data: bytes, first_row: int, end_row: int) -> tuple[np.ndar
     decoded, the other rows zero; the whole image where the JPEG has no restart marker per MCU row
     (module docstring). Damage outside those rows goes unseen unless it breaks the markers."""
     index = _row_segments(data) if data.startswith(SOI) and data.rstrip(PADDING).endswith(EOI) else None
-    if index is None:
+    if index is None or header_problem(data):  # decode_jpeg says what the header's problem is
         return decode_jpeg(data)
     sof, height, mcu_height, starts, ends = index
     first = min(max(first_row, 0) // mcu_height, len(starts) - 1)
