@@ -393,3 +393,47 @@ def test_video_times_are_refused_for_mcap(tmp_path, read):
     path = foxglove_file(tmp_path / "cam0.mcap")
     with pytest.raises(CameraStreamError, match=r"cam0\.mcap: foxglove_mcap carries its own camera times"):
         read(path, start_ns=T0)
+
+
+@pytest.mark.parametrize("read", READERS)
+def test_video_cut_short_of_its_declared_duration(tmp_path, read):
+    """Issue 37: a Matroska file cut to 90 % read as 6 of its 12 frames without a word (Matroska declares
+    no frame count, only a duration)."""
+    data = write_video(tmp_path / "cam0.mkv", "libx264").read_bytes()
+    cut = tmp_path / "cut.mkv"
+    cut.write_bytes(data[:int(len(data) * 0.9)])
+    with pytest.warns(UserWarning, match=r"cut\.mkv: 6 frames cover 0\.060 s of the 0\.120 s its header "
+                                         r"declares \(about 12 frames\): truncated or frames lost"):
+        times = list(read(cut, start_ns=T0))
+    assert times == TIMES[:6]
+    with pytest.raises(CameraStreamError, match=r"cut\.mkv: 6 frames cover 0\.060 s"):
+        read(cut, strict=True)
+
+
+@pytest.mark.parametrize("read", READERS)
+def test_a_video_frame_lost_in_the_middle_warns(tmp_path, read):
+    path = tmp_path / "cam0.mkv"
+    with av.open(str(path), "w") as container:
+        stream = container.add_stream("libx264", rate=100)
+        stream.width, stream.height, stream.pix_fmt = W, H, "yuv420p"
+        for i in (0, 1, 2, 4, 5, 6):  # frame 3 lost
+            frame = av.VideoFrame.from_ndarray(square_image(i), format="bgr24")
+            frame.pts = i
+            container.mux(stream.encode(frame))
+        container.mux(stream.encode())
+    with pytest.warns(UserWarning, match=r"cam0\.mkv: frame 3 comes 20\.000 ms after frame 2, where frames "
+                                         r"come every 10\.000 ms: frames lost"):
+        times = list(read(path))
+    assert times == [i * FRAME_NS for i in (0, 1, 2, 4, 5, 6)]
+
+
+@pytest.mark.parametrize("old, new, error", [(b"uint32 height", b"uint32 1eight", "NameError"),
+                                             (b"uint32 height", b"uint32 he\xb4ght", "UnicodeDecodeError")])
+def test_a_damaged_message_definition_is_named(tmp_path, old, new, error):
+    """Issue 37: the ROS 2 message definition parser's own errors escaped naming no file."""
+    data = raw_bag(tmp_path / "bag.mcap").read_bytes()
+    path = tmp_path / "damaged.mcap"
+    path.write_bytes(data.replace(old, new))
+    with pytest.raises(CameraStreamError, match=rf"damaged\.mcap: the message definition of /cam0/image_raw "
+                                                rf"\(sensor_msgs/msg/Image\) does not parse \({error}"):
+        read_all(path)

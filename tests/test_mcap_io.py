@@ -5,7 +5,7 @@ import cv2
 import numpy as np
 import pytest
 from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
-from mcap.reader import make_reader
+from mcap.reader import SeekingReader, make_reader
 from mcap.writer import IndexType
 from mcap.writer import Writer as McapWriter
 from mcap_protobuf.decoder import DecoderFactory
@@ -17,6 +17,7 @@ from pingpong.frames import FRAME_NS
 from pingpong.io.mcap_io import (
     CameraStreamWriter,
     McapDamagedError,
+    OptitrackWriter,
     _indexed_times,
     read_camera_stream,
     read_camera_times,
@@ -166,3 +167,81 @@ def test_camera_times_from_the_index_are_the_streamed_times(tmp_path, index_type
         assert read_camera_times(path, topic=topic).tolist() == times
         streamed = [t for t, _ in read_camera_stream(path, topic=topic)]
         assert streamed == times
+
+
+def first_index_entry(path) -> int:
+    """The file offset of the first entry (log_time, then offset) of the first chunk's message index."""
+    with open(path, "rb") as f:
+        chunk = SeekingReader(f).get_summary().chunk_indexes[0]
+    [start] = chunk.message_index_offsets.values()
+    return start + 1 + 8 + 2 + 4  # opcode, record length, channel id, length of the entries
+
+
+def test_a_flipped_bit_in_the_message_index_is_read_past(camera_file):
+    """Issue 37: bit 32 of frame 0's log_time in the index (no CRC guards it) moved frame 0 by 4.3 s
+    in camera_frame_times; the index is checked against the message it points to and read past."""
+    data = bytearray(camera_file.read_bytes())
+    data[first_index_entry(camera_file) + 4] ^= 1  # bit 32 of the first log_time
+    camera_file.write_bytes(bytes(data))
+    with pytest.warns(UserWarning, match=r"cam2\.mcap: its message index disagrees with the file .*log_time "
+                                         rf"{T0 ^ 2**32} ns.* read from the messages themselves"):
+        times = read_camera_times(camera_file)
+    assert times.tolist() == [T0 + i * FRAME_NS for i in range(300)]
+
+
+def test_a_message_index_of_impossible_length_is_read_past(camera_file):
+    """Issue 37: the mcap library's RecordLengthLimitExceeded from parsing a damaged index escaped
+    unnamed; now the index is read past with a warning naming the file."""
+    data = bytearray(camera_file.read_bytes())
+    data[first_index_entry(camera_file) - 14 + 7] = 0xFF  # the top byte of the index record's length
+    camera_file.write_bytes(bytes(data))
+    with pytest.warns(UserWarning, match=r"cam2\.mcap: its message index disagrees with the file "
+                                         r"\(RecordLengthLimitExceeded"):
+        times = read_camera_times(camera_file)
+    assert times.tolist() == [T0 + i * FRAME_NS for i in range(300)]
+
+
+def zero_chunks(path) -> None:
+    """Zero every chunk record but its length: a record of opcode 0, which readers skip as unknown."""
+    data = bytearray(path.read_bytes())
+    with open(path, "rb") as f:
+        for chunk in SeekingReader(f).get_summary().chunk_indexes:
+            start, end = chunk.chunk_start_offset, chunk.chunk_start_offset + chunk.chunk_length
+            data[start] = 0
+            data[start + 9:end] = bytes(end - start - 9)
+    path.write_bytes(bytes(data))
+
+
+def test_zeroed_optitrack_records_are_an_error(tmp_path):
+    """Issue 37: an OptiTrack file whose records were zeroed gave no bodies and no warning."""
+    path = tmp_path / "optitrack.mcap"
+    with OptitrackWriter(path) as writer:
+        for k in range(50):
+            writer.add("paddle_A", T0 + k * FRAME_NS, np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]))
+    zero_chunks(path)
+    with pytest.warns(UserWarning, match=r"optitrack\.mcap: /optitrack/paddle_A: 0 of the 50 messages its "
+                                         r"statistics count"), \
+            pytest.raises(McapDamagedError, match=r"optitrack\.mcap: no rigid-body poses"):
+        read_optitrack(path)
+
+
+def test_implausible_poses_are_dropped_with_a_warning(tmp_path):
+    path = tmp_path / "optitrack.mcap"
+    with OptitrackWriter(path) as writer:
+        for k in range(5):
+            quaternion = [0.0, 0.0, 0.0, 2.0 if k == 3 else 1.0]
+            writer.add("paddle_A", T0 + k * FRAME_NS, [float("nan") if k == 1 else 0.0, 0, 0], quaternion)
+    with pytest.warns(UserWarning, match=rf"optitrack\.mcap: 2 poses of paddle_A dropped, the first at "
+                                         rf"{T0 + FRAME_NS} ns .*expected finite values and a unit "
+                                         "quaternion"):
+        poses = read_optitrack(path)["paddle_A"]
+    assert poses["time_ns"].tolist() == [T0, T0 + 2 * FRAME_NS, T0 + 4 * FRAME_NS]
+
+
+def test_a_zeroed_chunk_of_frames_warns(camera_file):
+    zero_chunks(camera_file)
+    with pytest.warns(UserWarning, match=r"cam2\.mcap: /cam2/image: 0 of the 300 messages its statistics "
+                                         r"count; expected foxglove\.CompressedImage frames"):
+        assert list(read_camera_stream(camera_file)) == []
+    with pytest.raises(McapDamagedError, match=r"cam2\.mcap: /cam2/image: 0 of the 300 messages"):
+        list(read_camera_stream(camera_file, strict=True))

@@ -20,10 +20,13 @@ Formats, detected from the file's content (never its name) and logged with the f
   of the first frame, which a video does not carry; or a timestamp CSV (`timestamps=`, one row per
   frame, a `time_ns` column of camera-clock ns), which then wins.
 
-Every unreadable input raises CameraStreamError naming the file (and the frame or record). A truncated
-or corrupt file warns and ends the stream at the damage, or raises when strict.
+Every unreadable input raises CameraStreamError naming the file (and the frame or record), the libraries'
+own errors included. A truncated or corrupt file warns and ends the stream at the damage, or raises when
+strict; so does a video whose frames fall short of the duration its header declares (Matroska declares no
+frame count) or come at uneven intervals (frames lost, or a damaged time table).
 """
 
+import contextlib
 import logging
 import os
 import warnings
@@ -255,6 +258,21 @@ def _source(path: Path, topic: str | None, timestamps, start_ns: int) -> _Source
     return source
 
 
+@contextlib.contextmanager
+def _named(path: Path):
+    """Every error inside as a CameraStreamError naming the file: the libraries' own (a damaged header's
+    UnicodeDecodeError, a damaged message definition's) say neither which file nor what was expected."""
+    try:
+        yield
+    except CameraStreamError:
+        raise
+    except McapDamagedError as err:
+        raise CameraStreamError(str(err)) from err
+    except Exception as err:  # noqa: BLE001 - whatever a library raises on damage, named here
+        raise CameraStreamError(f"{path}: does not read as a camera stream ({type(err).__name__}: {err}); "
+                                "expected an undamaged MCAP or video recording") from err
+
+
 def _damage(text: str, strict: bool) -> None:
     if strict:
         raise CameraStreamError(text)
@@ -270,7 +288,12 @@ def _stamp_ns(message) -> int:
 
 def _ros2_messages(path: Path, source: _Source, schema: Schema, strict: bool):
     """(index, log_time, decoded message) of the image channel, with `schema` as the message definition."""
-    decoder = DecoderFactory().decoder_for("cdr", schema)
+    try:
+        decoder = DecoderFactory().decoder_for("cdr", schema)
+    except Exception as err:  # the msgdef parser raises its own types (and NameError) on a damaged text
+        raise CameraStreamError(f"{path}: the message definition of {source.topic} ({schema.name}) does not "
+                                f"parse ({type(err).__name__}: {err}); expected a ROS 2 .msg definition"
+                                ) from err
     messages = mcap_io.read_channel(path, source.topic, source.schema.name, "cdr", strict)
     for index, (log_time, data) in enumerate(messages):
         try:
@@ -341,12 +364,39 @@ def _video_packets(path: Path, strict: bool) -> tuple[list[int], Fraction]:
             if stream.frames > len(pts):
                 _damage(f"{path}: {len(pts)} of the {stream.frames} frames its header declares: truncated",
                         strict)
+            elif pts:
+                _check_extent(path, sorted(pts), stream, container.duration, strict)
             time_base = stream.time_base
     except av.FFmpegError as err:
         raise CameraStreamError(f"{path}: does not open as a video ({err}); truncated or corrupt") from err
     if len(set(pts)) != len(pts):
         raise CameraStreamError(f"{path}: frames share timestamps; expected one pts per frame")
     return sorted(pts), time_base
+
+
+def _check_extent(path: Path, pts: list[int], stream, duration_us: int | None, strict: bool) -> None:
+    """Damage unless the frames span the duration the header declares (Matroska declares no frame count)
+    and come at even intervals: a lost frame, or a damaged time, leaves a gap or an odd interval."""
+    if len(pts) < 2:
+        step = 1 / float(stream.average_rate) if stream.average_rate else None
+    else:
+        steps = np.diff(pts)
+        median = float(np.median(steps))
+        odd = np.flatnonzero(np.abs(steps - median) > 1 + 0.01 * median)  # 1 tick: rounded rates
+        if len(odd):
+            i = int(odd[0]) + 1
+            gap_ms, median_ms = (float(v * stream.time_base) * 1e3 for v in (steps[i - 1], median))
+            _damage(f"{path}: frame {i} comes {gap_ms:.3f} ms after frame {i - 1}, where frames come every "
+                    f"{median_ms:.3f} ms: frames lost or a damaged time table (or a variable-rate camera: "
+                    "give its timestamps CSV)", strict)
+            return
+        step = float(median * stream.time_base)
+    if not duration_us or not step:
+        return
+    covered, declared = float((pts[-1] - pts[0]) * stream.time_base) + step, duration_us / 1e6
+    if covered < declared - 1.5 * step:
+        _damage(f"{path}: {len(pts)} frames cover {covered:.3f} s of the {declared:.3f} s its header "
+                f"declares (about {round(declared / step)} frames): truncated or frames lost", strict)
 
 
 def _container_times(pts: list[int], time_base: Fraction, start_ns: int) -> np.ndarray:
@@ -437,7 +487,7 @@ def _checked_times(path: Path, times: np.ndarray) -> np.ndarray:
 def _checked_frames(path: Path, frames: Iterator[Frame]) -> Iterator[Frame]:
     """The frames, checked as they pass: strictly increasing times, at least one; damage as this error."""
     count, last_ns = 0, None
-    try:
+    with _named(path):
         for frame in frames:
             if last_ns is not None and frame.time_ns <= last_ns:
                 raise CameraStreamError(f"{path}: frame {count} at {frame.time_ns} ns does not follow frame "
@@ -445,8 +495,6 @@ def _checked_frames(path: Path, frames: Iterator[Frame]) -> Iterator[Frame]:
                                         "times")
             yield frame
             count, last_ns = count + 1, frame.time_ns
-    except McapDamagedError as err:
-        raise CameraStreamError(str(err)) from err
     if count == 0:
         raise CameraStreamError(f"{path}: no frames; expected a camera stream of at least one frame")
 
@@ -462,7 +510,8 @@ def open_camera_stream(path: str | os.PathLike, strict: bool = False,
     topic: the image topic of an MCAP file with more than one.
     """
     path = Path(path)
-    source = _source(path, topic, timestamps, start_ns)
+    with _named(path):
+        source = _source(path, topic, timestamps, start_ns)
     if source.format == "foxglove_mcap":
         jpegs = mcap_io.read_camera_stream(path, strict, topic=source.topic)
         frames = (CameraFrame(t, data) for t, data in jpegs)
@@ -479,16 +528,14 @@ def camera_frame_times(path: str | os.PathLike, strict: bool = False,
     """The camera-clock time (int64 ns) of every frame that `open_camera_stream` gives, without decoding
     images: MCAP message times or header stamps, a video's demuxed packets or its timestamp CSV."""
     path = Path(path)
-    source = _source(path, topic, timestamps, start_ns)
-    try:
+    with _named(path):
+        source = _source(path, topic, timestamps, start_ns)
         if source.format == "foxglove_mcap":
             times = mcap_io.read_camera_times(path, strict, topic=source.topic)
         elif source.format == "video":
             times = _video_times(path, strict, timestamps, start_ns)
         else:
             times = _ros2_times(path, source, strict)
-    except McapDamagedError as err:
-        raise CameraStreamError(str(err)) from err
     return _checked_times(path, times)
 
 
