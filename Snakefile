@@ -10,9 +10,16 @@ min_version("9.0")
 # (`pip install -e .` of this checkout, which `make` does) and check at start that it is this one.
 sys.path.insert(0, str(Path(workflow.basedir) / "src"))
 
-from pingpong.common.config import validate_config
+from pingpong.common.config import check_config_files, validate_config
 from pingpong.io.openpose_json import KEYPOINT_MODELS
 from pingpong.uncertainty.names import ESTIMATORS
+
+# Snakemake's YAML loader keeps the last of a repeated key and expands aliases without bound: every config
+# file of this run (the --configfile ones, read before this line, and the default) is read again strictly.
+# Its errors, and the schema's below, name the file that set the key.
+CONFIG_SOURCES = check_config_files(
+    [*[p for p in ["config/config.yaml"] if Path(p).exists()], *workflow.configfiles]
+)
 
 
 configfile: "config/config.yaml"
@@ -20,7 +27,9 @@ configfile: "config/config.yaml"
 
 # keys whose values are registered names take their enums from the registries
 REGISTERED = {"robot.estimator": [*ESTIMATORS, None], "lab.openpose_model": list(KEYPOINT_MODELS)}
-validate_config(config, Path(workflow.basedir) / "config/schema.yaml", enums=REGISTERED)
+validate_config(
+    config, Path(workflow.basedir) / "config/schema.yaml", enums=REGISTERED, sources=CONFIG_SOURCES
+)
 
 
 include: "workflow/rules/common.smk"
