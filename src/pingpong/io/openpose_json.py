@@ -124,6 +124,9 @@ def _count_hint(count: int, model: str) -> str:
     return f"; {count} values fit {' or '.join(fits)}: declare that model"
 
 
+# the keys of a person in OpenPose's JSON (and of the markerless tools that write its format)
+OPENPOSE_PERSON_KEYS = {"person_id", *(f"{part}_keypoints_{d}d" for d in (2, 3)
+                                       for part in ("pose", "face", "hand_left", "hand_right"))}
 _NUMBERS = {int, float}  # JSON numbers as json.loads gives them; bool, str and None are not
 
 
@@ -138,6 +141,10 @@ def _pose_values(path: Path, index: int, person, model: str) -> np.ndarray | Non
                                  '{"pose_keypoints_2d":[x,y,c]*K,..}')
     pose = person.get("pose_keypoints_2d")
     if pose is None or pose == []:
+        strange = sorted(set(person) - OPENPOSE_PERSON_KEYS)  # a misspelt or damaged key, not an empty person
+        if strange:
+            warnings.warn(f"{where} has no pose_keypoints_2d but keys {strange} that OpenPose does not "
+                          "write: read as no person", stacklevel=2)
         return None
     if not isinstance(pose, list):
         raise KeypointsFileError(f"{where}: pose_keypoints_2d is {type(pose).__name__}, expected a list of "
