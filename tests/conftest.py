@@ -32,6 +32,16 @@ def tiny_run(tmp_path_factory):
     return root
 
 
+@pytest.fixture(scope="module")
+def reader():
+    """The fuzz tests' reader calls in a child process (tests/fuzz_util.py), one child per test module."""
+    from fuzz_util import IsolatedReader
+
+    isolated = IsolatedReader(timeout_s=10)
+    yield isolated
+    isolated.close()
+
+
 def coverage_bounds(n_cal: int, coverages: np.ndarray, alpha: float) -> tuple[float, float]:
     """Split conformal with n exchangeable calibration scores (no ties): 1 - alpha <= E[coverage] <=
     1 - alpha + 1/(n + 1); widened by 4 standard errors of the mean coverage over the trials given."""

@@ -17,7 +17,7 @@ from collections import Counter
 
 import numpy as np
 import pytest
-from fuzz_util import IsolatedReader, damaged, record
+from fuzz_util import damaged, record
 from test_calibration_import import random_cameras
 
 from pingpong.io.calibration_import import export_anipose_toml, export_opencv_yaml
@@ -84,13 +84,6 @@ def with_wrong_value(data: bytes, fmt: str, rng) -> bytes:
     m = numbers[int(rng.integers(len(numbers)))]
     wrong = WRONG_VALUES[fmt][int(rng.integers(len(WRONG_VALUES[fmt])))]
     return data[:m.start()] + wrong + data[m.end():]
-
-
-@pytest.fixture(scope="module")
-def reader():
-    isolated = IsolatedReader(timeout_s=10)
-    yield isolated
-    isolated.close()
 
 
 @pytest.mark.parametrize("fmt", ["yaml", "json", "toml"])

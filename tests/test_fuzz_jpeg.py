@@ -15,7 +15,7 @@ from collections import Counter
 import cv2
 import numpy as np
 import pytest
-from fuzz_util import IsolatedReader, damaged, record
+from fuzz_util import damaged, record
 
 from pingpong.io.jpeg import MAX_PIXELS, SOS, _markers
 from pingpong.twin import render
@@ -66,13 +66,6 @@ def classify(result, path, original: bytes, bad: bytes, expected) -> str:
     offset = next((k for k, (a, b) in enumerate(zip(original, bad, strict=False)) if a != b),
                   min(len(original), len(bad)))
     return "pixels" if region(original, offset) == "pixels" else "lie"
-
-
-@pytest.fixture(scope="module")
-def reader():
-    isolated = IsolatedReader(timeout_s=10)
-    yield isolated
-    isolated.close()
 
 
 @pytest.mark.parametrize("rows", [None, BAND], ids=["whole", "rows"])

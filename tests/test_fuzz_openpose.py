@@ -9,7 +9,7 @@ import json
 
 import numpy as np
 import pytest
-from fuzz_util import IsolatedReader, damaged, record
+from fuzz_util import damaged, record
 
 from pingpong.io.openpose_json import KEYPOINT_MODELS
 
@@ -51,13 +51,6 @@ def only_numbers_changed(original: str, text: bytes) -> bool:
         return shape(json.loads(text)) == shape(json.loads(original))
     except (ValueError, UnicodeDecodeError, RecursionError):
         return False
-
-
-@pytest.fixture(scope="module")
-def reader():
-    isolated = IsolatedReader(timeout_s=10)
-    yield isolated
-    isolated.close()
 
 
 @pytest.mark.parametrize("model", sorted(KEYPOINT_MODELS))

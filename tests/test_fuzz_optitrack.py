@@ -4,8 +4,7 @@ or the undamaged poses; silently changed poses only in a Motive CSV where one te
 another plausible one (the format carries no check), counted apart."""
 
 import numpy as np
-import pytest
-from fuzz_util import IsolatedReader, damaged, record
+from fuzz_util import damaged, record
 from test_paddle_resample import swing, write_motive_csv
 
 from pingpong.io.mcap_io import OptitrackWriter
@@ -53,13 +52,6 @@ def optitrack_mcap(path, n: int = 100):
             if k % 3 == 0:
                 writer.add("table_marker_0", t, np.array([0.5, 0.0, 1.0]), np.array([0.0, 0.0, 0.0, 1.0]))
     return path
-
-
-@pytest.fixture(scope="module")
-def reader():
-    isolated = IsolatedReader(timeout_s=10)
-    yield isolated
-    isolated.close()
 
 
 def fuzz(reader, original, cases, name: str, text: bool) -> tuple[dict, list]:

@@ -13,7 +13,7 @@ import zlib
 import numpy as np
 import pytest
 from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
-from fuzz_util import IsolatedReader, damaged, record
+from fuzz_util import damaged, record
 from mcap.reader import SeekingReader
 from mcap.writer import CompressionType
 from mcap_protobuf.writer import Writer as ProtobufWriter
@@ -92,13 +92,6 @@ FORMATS = {
     "mkv": lambda d: write_video(d / "cam0.mkv", "libx264"),
     "avi": lambda d: write_video(d / "cam0.avi", "mpeg4"),
 }
-
-
-@pytest.fixture(scope="module")
-def reader():
-    isolated = IsolatedReader(timeout_s=10)
-    yield isolated
-    isolated.close()
 
 
 def fuzz(reader, original, cases, name: str) -> tuple[dict, list]:
