@@ -18,7 +18,7 @@ from pingpong.uncertainty.names import ESTIMATORS
 # file of this run (the --configfile ones, read before this line, and the default) is read again strictly.
 # Its errors, and the schema's below, name the file that set the key.
 CONFIG_SOURCES = check_config_files(
-    [*[p for p in ["config/config.yaml"] if Path(p).exists()], *workflow.configfiles]
+    (["config/config.yaml"] if Path("config/config.yaml").exists() else []) + list(workflow.configfiles)
 )
 
 

@@ -49,6 +49,19 @@ def test_a_complete_lab_layout_schedules_no_twin_rule(lab_root):
     assert not {r for r in rules if r.startswith("twin_") or r == "report_twin_flights"}
 
 
+def test_no_rule_writes_raw_under_source_lab(lab_root):
+    """Every job of the whole workflow forced (--forceall), and no output under raw/; a raw/ file asked for
+    has no rule to make it."""
+    proc = snakemake(lab_root, "-n", "--forceall")
+    outputs = [f.strip() for line in proc.stdout.splitlines() if line.strip().startswith("output:")
+               for f in line.split(":", 1)[1].split(",")]
+    assert len(outputs) > 50 and "interim/pose3d/s00.parquet" in outputs
+    assert not [f for f in outputs if f.startswith("raw/")]
+    for target in ("raw/twin_truth/rig.json", "raw/sessions/s00/cam9.mcap", "raw/sessions/s00/openpose/cam1"):
+        proc = snakemake(lab_root, "-n", target, check=False)
+        assert proc.returncode != 0 and "MissingRuleException" in said(proc), target
+
+
 def test_missing_openpose_and_calibration_view_stop_before_any_job(lab_root):
     shutil.rmtree(lab_root / "raw/sessions/s00/openpose/cam1")
     (lab_root / "raw/calibration/cam2/table.png").unlink()

@@ -104,6 +104,12 @@ def raw_outputs():
     )
 
 
+def extrinsics_kind():
+    """How the fitted cameras are placed (perception.calibration_extrinsics): table_mat, board or points."""
+    method = config["perception"]["calibration_extrinsics"]
+    return method["type"] if isinstance(method, dict) else method
+
+
 def calibration_captures(wildcards=None):
     """The calibration rule's inputs by name (unpack): every camera's intrinsics views and extrinsics shot
     in any image format OpenCV reads (pingpong.io.calibration_files; the twin's as it writes them), or
@@ -114,8 +120,7 @@ def calibration_captures(wildcards=None):
                                                intrinsics_views)
 
     perception = config["perception"]
-    method = perception["calibration_extrinsics"]
-    kind = method["type"] if isinstance(method, dict) else "table_mat"
+    method, kind = perception["calibration_extrinsics"], extrinsics_kind()
     folders = [f"raw/calibration/{cam}" for cam in cameras()]
     stem = BOARD_SHOT if kind == "board" else TABLE_SHOT
     try:
@@ -163,11 +168,9 @@ def check_raw_layout():
             raise WorkflowError(problems[0])
         return
     lab = config["lab"]
-    extrinsics = config["perception"]["calibration_extrinsics"]
     problems = lab_layout_problems(Path("."), lab["sessions"], lab["cameras"],
                                    Path(optitrack_path("any")).name if has_optitrack() else None,
-                                   config["perception"]["calibration_import"],
-                                   extrinsics["type"] if isinstance(extrinsics, dict) else extrinsics)
+                                   config["perception"]["calibration_import"], extrinsics_kind())
     if problems:
         raise WorkflowError("the lab's recordings under raw/ do not match the config:\n  - "
                             + "\n  - ".join(problems) + "\n(see the README's 'Bringing your lab's recordings')")

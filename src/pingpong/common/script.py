@@ -44,6 +44,14 @@ class StageContext:
     params: dict
     log: Path | None
 
+    def optional_input(self, name: str) -> str | None:
+        """A named input that may be absent: a path, a list of at most one (Snakemake's conditional
+        inputs), or nothing."""
+        value = self.input.get(name)
+        if isinstance(value, list | tuple):
+            return str(value[0]) if value else None
+        return str(value) if value else None
+
     def provenance(self) -> Provenance:
         params = {k: v for k, v in self.params.items() if k != "code"}
         files = [f for v in self.input.values() for f in (v if isinstance(v, list | tuple) else [v])]

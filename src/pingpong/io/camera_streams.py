@@ -556,3 +556,15 @@ def camera_frame_size(path: str | os.PathLike, strict: bool = False,
     finally:
         frames.close()  # a video's container closes now, not when collected
     raise CameraStreamError(f"{path}: no frame decodes ({first_reason}); expected images to size the stream")
+
+
+def check_calibrated_size(path: str | os.PathLike, camera, calibration: str | os.PathLike,
+                          strict: bool = False, **reading) -> None:
+    """An error naming the stream, both sizes and the calibration file unless the stream's frames
+    (camera_frame_size; `reading` as open_camera_stream's) have the size `camera` was calibrated at: other
+    pixels would land off their calibrated rays."""
+    width, height = camera_frame_size(path, strict, **reading)
+    if (width, height) != (camera.width, camera.height):
+        raise CameraStreamError(f"{path}: frames of {width} x {height} px, but camera {camera.name} is "
+                                f"calibrated for {camera.width} x {camera.height} px in {calibration}; "
+                                "expected the stream at the calibration's size (not cropped or scaled)")

@@ -27,6 +27,7 @@ from scipy.optimize import linear_sum_assignment
 
 from pingpong.common.camera import Camera
 from pingpong.frames import MODEL_JOINT_IDS
+from pingpong.perception.pose2d import nanmedian_last
 from pingpong.perception.scene import Scene
 from pingpong.perception.triangulation import reprojection_errors, triangulate_dlt
 
@@ -52,12 +53,10 @@ def people_arrays(table: pd.DataFrame, times: np.ndarray) -> tuple[np.ndarray, n
 
 
 def _median_error(errors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per point and view, the median over joints (axis 1) of finite errors, and how many there were."""
+    """Per point and view, the median over joints (axis 1) of finite errors (inf where none), and how many
+    there were."""
     count = np.isfinite(errors).sum(axis=1)
-    ordered = np.sort(np.where(np.isfinite(errors), errors, np.inf), axis=1)
-    low = np.take_along_axis(ordered, np.maximum(count - 1, 0)[:, None] // 2, axis=1)[:, 0]
-    high = np.take_along_axis(ordered, (count // 2)[:, None], axis=1)[:, 0] if ordered.shape[1] else low
-    return np.where(count > 0, (low + high) / 2, np.inf), count
+    return np.where(count > 0, nanmedian_last(np.moveaxis(errors, 1, -1)), np.inf), count
 
 
 def combination_fits(cameras: list[Camera], px: list[np.ndarray], conf: list[np.ndarray],

@@ -744,6 +744,16 @@ def load_cameras(path) -> tuple[list[Camera], dict]:
     return [Camera.from_dict(c) for c in payload["cameras"]], payload
 
 
+def calibrated_camera(path, name: str) -> Camera:
+    """The camera `name` of a cameras.json; an error naming the file and its cameras when it has none."""
+    cameras, _ = load_cameras(path)
+    for camera in cameras:
+        if camera.name == name:
+            return camera
+    raise ValueError(f"{path}: no camera {name!r} (cameras: {', '.join(c.name for c in cameras)}); "
+                     "expected one calibrated for each stream")
+
+
 def table_from_optitrack(calibration: dict, where) -> np.ndarray:
     """T_table_from_optitrack (4x4) of a loaded cameras.json; a clear error where the lab has none."""
     T = calibration.get("T_table_from_optitrack")

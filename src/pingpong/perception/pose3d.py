@@ -14,7 +14,6 @@ from pingpong.perception.triangulation import (
     pose_gate_px,
     reprojection_errors,
     reprojection_gate_px,
-    triangulate_dlt,
     triangulate_robust,
 )
 
@@ -55,11 +54,13 @@ def pose3d_table(cameras: list[Camera], poses2d: list[pd.DataFrame], scene: Scen
     px, conf = chosen_joints(people, choice)  # (F, S, J, C, ...)
     flat_px = px.reshape(-1, len(cameras), 2)
     flat_conf = conf.reshape(-1, len(cameras)) if weighted else None
-    everything = triangulate_robust(cameras, flat_px, np.inf, min_views, flat_conf)  # to gauge the noise
+    plain = triangulate_robust(cameras, flat_px, np.inf)  # every view, unweighted: the agreement's reference
+    everything = (plain if flat_conf is None and min_views == 2  # the all-view fit that gauges the noise
+                  else triangulate_robust(cameras, flat_px, np.inf, min_views, flat_conf))
     errors = reprojection_errors(cameras, everything["points"], flat_px)
     gate = pose_gate_px(cameras, errors, everything["used_mask"], gate_share, noise_factor)
     tri = triangulate_robust(cameras, flat_px, gate, min_views, flat_conf)
-    report = _report(cameras, scene, choice, tri, flat_px, gate)
+    report = _report(cameras, scene, choice, tri, plain["points"], gate, plain["n_views"])
     n_frames, n_slots, n_joints = px.shape[:3]
     points = tri["points"].reshape(n_frames, n_slots, n_joints, 3)
     n_views = tri["n_views"].reshape(n_frames, n_slots, n_joints)
@@ -75,19 +76,14 @@ def pose3d_table(cameras: list[Camera], poses2d: list[pd.DataFrame], scene: Scen
     return pd.concat(parts, ignore_index=True), report
 
 
-def _report(cameras: list[Camera], scene: Scene, choice: np.ndarray, tri: dict, flat_px: np.ndarray,
-            gate: np.ndarray) -> dict:
-    """What pose3d_table's docstring lists, from the association's choice and the joints' fit."""
+def _report(cameras: list[Camera], scene: Scene, choice: np.ndarray, tri: dict, plain: np.ndarray,
+            gate: np.ndarray, seen_views: np.ndarray) -> dict:
+    """What pose3d_table's docstring lists, from the association's choice, the joints' fit and the plain
+    all-view DLT of the same views (plain (N, 3); seen_views (N,): how many views each joint had)."""
     n_frames, n_slots, n_cams = choice.shape
     used = tri["used_mask"].reshape(n_frames, n_slots, -1, n_cams).any(axis=2)  # (F, S, C)
-    seen = np.isfinite(flat_px).all(axis=-1)
-    P = np.stack([cam.P for cam in cameras])
-    undistorted = np.full_like(flat_px, np.nan)
-    for c, cam in enumerate(cameras):
-        undistorted[seen[:, c], c] = cam.undistort_pixels(flat_px[seen[:, c], c])
-    plain = triangulate_dlt(P, undistorted, seen)  # every view of the chosen people, unweighted, none dropped
     gap = 1e3 * np.linalg.norm(tri["points"] - plain, axis=1)
-    dropped = tri["n_views"] < seen.sum(axis=1)
+    dropped = tri["n_views"] < seen_views
     fitted = np.isfinite(tri["points"]).all(axis=1)
     gap_dropped = gap[np.isfinite(gap) & dropped]  # where the two differ at all
     gap = gap[np.isfinite(gap)]

@@ -14,16 +14,9 @@ from pingpong.perception.calibration import (
 from pingpong.perception.schemas import CAMERAS
 
 
-def _one(value):
-    """An optional input given as a path, a list of one, or nothing."""
-    if isinstance(value, list | tuple):
-        return value[0] if value else None
-    return value or None
-
-
 def main(ctx):
     p = ctx.params
-    import_path = _one(ctx.input.get("calibration_import"))
+    import_path = ctx.optional_input("calibration_import")
     if import_path:
         shots = list(ctx.input.get("shots") or [])  # every camera's table shot (p["cameras"] order), or none
         cameras, checks = import_calibration(import_path, p["import_units"], p["import_world"], p["cameras"],
@@ -33,10 +26,10 @@ def main(ctx):
         record = {"reports": [], "import_checks": checks}
     else:
         setup = intrinsics_setup(p["board"], p["fit_k3"], p["source"])
-        method = extrinsics_method(p["extrinsics"], p["board"], _one(ctx.input.get("scene_points")))
+        method = extrinsics_method(p["extrinsics"], p["board"], ctx.optional_input("scene_points"))
         cameras, reports = fit_calibration(p["cameras"], p["folders"], setup, p["max_rms_share"], method)
         record, frame = {"reports": reports}, method.frame
-    optitrack = _one(ctx.input.get("optitrack"))  # none: a lab without OptiTrack
+    optitrack = ctx.optional_input("optitrack")  # none: a lab without OptiTrack
     poses = None if optitrack is None else read_optitrack_poses(optitrack, p["strict"], p["take_start_ns"])
     write_json({"cameras": [c.to_dict() for c in cameras], **record, "world_frame": frame,
                 **optitrack_record(poses)}, ctx.output.cameras, CAMERAS, ctx.provenance())

@@ -29,16 +29,10 @@ def checkout_commit(root: Path = CHECKOUT) -> str:
     return head.stdout.strip() + (" + uncommitted changes" if dirty else "")
 
 
-def _one(paths) -> str | None:
-    """A named input given as a path or a list of at most one (Snakemake's conditional inputs)."""
-    paths = [paths] if isinstance(paths, str | Path) else list(paths or [])
-    return str(paths[0]) if paths else None
-
-
 def main(ctx):
     # the twin's accuracy tables, one path or none (a lab run has no truth to measure against)
-    optional = {k: pd.read_csv(_one(ctx.input.get(k))) for k in ("perception_accuracy", "curation_accuracy")
-                if _one(ctx.input.get(k))}
+    optional = {k: pd.read_csv(ctx.optional_input(k)) for k in ("perception_accuracy", "curation_accuracy")
+                if ctx.optional_input(k)}
     text = summary_markdown(pd.read_csv(ctx.input.curation), read_table(ctx.input.predictions, PREDICTIONS),
                             pd.read_csv(ctx.input.strike_error), pd.read_csv(ctx.input.robot),
                             pd.read_csv(ctx.input.verdict), commit=checkout_commit(), seed=ctx.params["seed"],
