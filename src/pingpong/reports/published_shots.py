@@ -42,6 +42,15 @@ RAHMANIAN_2023_URL = "https://ar5iv.labs.arxiv.org/html/2312.03024 (and the LaTe
 SMASH_BLOG = ("How Fast Can You Smash? TableTennisCoaching.com blog, November 10, 2016 (author not named "
               "in the copy read)")
 SMASH_BLOG_URL = "http://www.tabletenniscoaching.com/node/2534"
+HODGES_1993 = ("Hodges L.: Table Tennis: Steps to Success. Human Kinetics, Champaign IL (1993), Step 11 "
+               "'Lobbing: How to Return Smashes' (a coaching text, not a measurement)")
+HODGES_1993_URL = "https://docslib.org/doc/8169164/step-11-lobbing-how-to-return-smashes"
+HODGES_2019 = ("Hodges L.: Topspin Defense. Tip of the Week, TableTennisCoaching.com, September 16, 2019 (a "
+               "coaching text, not a measurement)")
+HODGES_2019_URL = "http://tabletenniscoaching.com/TipOfTheWeek?page=5"
+HODGES_2013 = ("Hodges L.: Super Spinny Slow Loops. TableTennisCoaching.com, February 4, 2013 (a coaching "
+               "text, not a measurement)")
+HODGES_2013_URL = "http://www.tabletenniscoaching.com/node/1333"
 
 PUBLISHED = (
     Published("speed", "all", XIA_BACKHAND, XIA_2020, XIA_2020_URL),
@@ -65,6 +74,17 @@ PUBLISHED = (
     Published("speed", "smash",
               "record of 75.8 mph (122 km/h, 33.9 m/s) by D. Ovtcharov (radar gun), earlier record 69.9 "
               "mph (112.5 km/h, 31.25 m/s): maxima, not typical values", SMASH_BLOG, SMASH_BLOG_URL),
+    Published("net_height", "fish",
+              "topspin defence from off the table: 'the ball crosses the net perhaps one to three feet high "
+              "[0.30-0.91 m], sometimes higher or lower', with topspin, landing deep", HODGES_2019,
+              HODGES_2019_URL),
+    Published("net_height", "lob",
+              "'a good lob ... can go 15 feet [4.6 m] or more in the air, has lots of topspin or sidespin, "
+              "and lands deep on the table (some players lob lower but with more spin)': the top of the arc, "
+              "not its height at the net", HODGES_1993, HODGES_1993_URL),
+    Published("net_height", "loop",
+              "the slow, spinny loop: 'arc the ball a little higher than usual, making it go deep' (no "
+              "height given)", HODGES_2013, HODGES_2013_URL),
 )
 
 

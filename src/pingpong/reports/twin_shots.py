@@ -16,7 +16,8 @@ SPIN_TYPES = ("topspin", "backspin", "sidespin", "none")
 SIDESPIN_FRACTION = 0.5  # sidespin-dominant: the across-flight horizontal part of F exceeds this share of |F|
 BOUNCE_BAND = (0.10, 0.70)  # m from the net; the paper: "most bounces occur for y in [-70, -10]" cm
 PERCENTILES = (10, 50, 90)
-STROKES = ("drive", "loop", "push", "block", "flick", "sidespin", "smash")  # the order of the per-stroke rows
+# the order of the per-stroke rows
+STROKES = ("drive", "loop", "push", "block", "flick", "sidespin", "smash", "fish", "lob")
 SHOT_COLUMNS = ("rally", "shot", "outcome", "v_out_x", "v_out_y", "v_out_z", "w_out_x", "w_out_y", "w_out_z")
 # statistic -> (label, unit); the keys are those of published_shots.PUBLISHED
 STATISTICS = {
@@ -29,6 +30,11 @@ STATISTICS = {
     "bounce_depth": ("first-bounce distance from the net (abs y)", "m"),
     "bounce_in_band": (f"share of first bounces {BOUNCE_BAND[0]:.2f}-{BOUNCE_BAND[1]:.2f} m from the net",
                        ""),
+    # the net section (twin_flights.net_table)
+    "net_height": ("net-crossing height: ball centre over the net's top edge", "m"),
+    "net_high_share": ("share crossing more than 0.25 m over the net", ""),
+    "net_speed": ("speed at the net (norm of v where y = 0)", "m/s"),
+    "bounce_speed": ("speed before the first bounce (flight_stats speed_in)", "m/s"),
 }
 
 

@@ -405,7 +405,7 @@ def _net_flight_time(p_hit, goal, w, km, ks, T_hint, net_margin):
 
 
 def aim_shots(p_hit, target_bounce_xy, w0, params: BallParams | Sequence[BallParams] = BallParams(),
-              flight_time=None, speed_hint: float = 9.0, net_margin: float = 0.03,
+              flight_time=None, speed_hint: float = 9.0, net_margin=0.03,
               dt_max: float = 0.02, tol: float = 1e-5, strict: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """Outgoing velocities (N, 3) that bounce N balls at targets (N, 2), and their flight times (N,) s.
 
@@ -413,7 +413,8 @@ def aim_shots(p_hit, target_bounce_xy, w0, params: BallParams | Sequence[BallPar
     3 equations in v0, solved by Newton with a finite-difference Jacobian, all shots in one batch.
     T defaults to distance / speed_hint; shots that do not clear the net by net_margin (m) get a 10%
     longer (higher) flight and are solved again. RK4 at dt <= 20 ms is accurate to ~1e-6 m here
-    (checked against simulate_flight at 1 ms). speed_hint may be one per shot (N,). strict=False gives
+    (checked against simulate_flight at 1 ms). speed_hint and net_margin may be one per shot (N,): a
+    margin well above the lowest clearing arc gives a higher, slower shot. strict=False gives
     NaN rows for shots that do not converge or cannot clear the net, instead of raising.
     """
     p_hit = np.atleast_2d(np.asarray(p_hit, float))
@@ -426,9 +427,10 @@ def aim_shots(p_hit, target_bounce_xy, w0, params: BallParams | Sequence[BallPar
     ks = np.array([q.magnus_saturation for q in plist])[:, None]
     r = np.array([q.radius for q in plist])
     goal = np.column_stack([target, r])
+    margin = np.broadcast_to(np.asarray(net_margin, float), (n_shots,))
     if flight_time is None:
         T = np.linalg.norm(goal[:, :2] - p_hit[:, :2], axis=1) / speed_hint
-        T = np.maximum(T, 1.05 * _net_flight_time(p_hit, goal, w0, km, ks, T, net_margin))
+        T = np.maximum(T, 1.05 * _net_flight_time(p_hit, goal, w0, km, ks, T, margin))
     else:
         T = np.broadcast_to(np.asarray(flight_time, float), (n_shots,)).copy()
     v0 = np.empty((n_shots, 3))
@@ -458,7 +460,7 @@ def aim_shots(p_hit, target_bounce_xy, w0, params: BallParams | Sequence[BallPar
         if missed.any() and strict:
             raise ValueError(f"aiming did not converge: a bounce misses by {np.abs(residual).max()} m")
         v0[todo] = np.where(missed[:, None], np.nan, v)
-        clear = (clearance >= net_margin) | missed
+        clear = (clearance >= margin[todo]) | missed
         todo = todo[~clear]
         if len(todo) == 0:
             return v0, T

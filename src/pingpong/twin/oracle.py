@@ -54,10 +54,11 @@ def redraw_decisions(record, hold_intent: bool, hold_late: bool, rng: np.random.
 
 def redraw(record, hold_intent: bool, hold_late: bool, rng: np.random.Generator, n: int,
            ball: BallParams = BallParams()):
-    """n re-drawn shots (redraw_decisions): targets (n, 2), speed hints (n,), wanted spins (n, 3), params."""
+    """n re-drawn shots (redraw_decisions): targets (n, 2), speed hints (n,), wanted spins (n, 3), params,
+    net heights (n,) m."""
     intent, final, execution = redraw_decisions(record, hold_intent, hold_late, rng, n, ball)
-    target, speed, w = executed_shot(record.ctx, record.timing, intent, final, execution)
-    return target, speed, w, execution["params"]
+    target, speed, w, net_height = executed_shot(record.ctx, record.timing, intent, final, execution)
+    return target, speed, w, execution["params"], net_height
 
 
 def paddle_spin(w_wanted, v_out, v_in, w_in, ratio) -> np.ndarray:
@@ -74,9 +75,11 @@ def paddle_spin(w_wanted, v_out, v_in, w_in, ratio) -> np.ndarray:
     return ratio * (w_wanted - along(w_wanted)) + along(w_in)
 
 
-def _aim(p_hit, target, w, params, speed, flight_time=None):
-    """Outgoing velocities (n, 3) from p_hit (n, 3), NaN where no speed hint clears the net (the twin's
-    _aim_slower), and their flight times (n,); a given flight_time (n,) starts the aim from there instead."""
+def _aim(p_hit, target, w, params, speed, net_height, flight_time=None):
+    """Outgoing velocities (n, 3) from p_hit (n, 3), NaN where no speed hint clears the net at net_height
+    (n,) m over its top edge (the twin's _aim_slower), and their flight times (n,); a given flight_time (n,)
+    starts the aim from there instead."""
+    margin = net_height - np.array([q.radius for q in params])
     v, T = np.full((len(target), 3), np.nan), np.full(len(target), np.nan)
     for factor in SLOWER_AIMS:
         todo = np.flatnonzero(np.isnan(v[:, 0]))
@@ -85,12 +88,12 @@ def _aim(p_hit, target, w, params, speed, flight_time=None):
         start = None if flight_time is None else flight_time[todo]
         v[todo], T[todo] = aim_shots(p_hit[todo], target[todo], w[todo],
                                      [params[i] for i in todo], flight_time=start,
-                                     speed_hint=speed[todo] * factor, strict=False)
+                                     speed_hint=speed[todo] * factor, net_margin=margin[todo], strict=False)
         flight_time = None  # what the given times could not clear falls back to the speed hints
     return v, T
 
 
-def strike_x_batch(p_hit, v_out, w, params, side, dt: float = 0.004, t_max: float = 1.5) -> np.ndarray:
+def strike_x_batch(p_hit, v_out, w, params, side, dt: float = 0.004, t_max: float = 2.5) -> np.ndarray:
     """x (n,) where each ball, hit at p_hit ((3,) or (n, 3)) by the player at side (+1/-1, or (n,)),
     crosses the far strike line y = side * STRIKE_Y after exactly one bounce on the far half; NaN for
     balls that do not (no bounce there, a second bounce, the floor)."""
@@ -132,16 +135,16 @@ def strike_x_batch(p_hit, v_out, w, params, side, dt: float = 0.004, t_max: floa
     return x
 
 
-def oracle_flights(shots: dict, target, speed, w_wanted, params) -> np.ndarray:
+def oracle_flights(shots: dict, target, speed, w_wanted, params, net_height) -> np.ndarray:
     """Strike x (n,) of n shots aimed like the twin's: aimed with the wanted spin, the paddle's spin
     (paddle_spin) estimated from that aim, re-aimed with it and flown (NaN: not a good shot). shots: each
     draw's hit, {"p_hit", "v_in", "w_in": (n, 3), "side", "spin_ratio": (n,)}."""
     ratio = shots["spin_ratio"][:, None]
     w = w_wanted * ratio
-    v, T = _aim(shots["p_hit"], target, w, params, speed)
+    v, T = _aim(shots["p_hit"], target, w, params, speed, net_height)
     ok = np.isfinite(v[:, 0])
     w[ok] = paddle_spin(w_wanted[ok], v[ok], shots["v_in"][ok], shots["w_in"][ok], ratio[ok])
-    v, _ = _aim(shots["p_hit"], target, w, params, speed, np.where(ok, T, np.nan))
+    v, _ = _aim(shots["p_hit"], target, w, params, speed, net_height, np.where(ok, T, np.nan))
     return strike_x_batch(shots["p_hit"], v, w, params, shots["side"])
 
 
@@ -168,7 +171,9 @@ def _fly_sets(records, sets: list, n_draws: int, batch_draws: int) -> list[np.nd
         owner = np.repeat([i for i, _, _ in batch], n_draws)
         target, speed, w_wanted = (np.concatenate([draws[k] for _, _, draws in batch]) for k in range(3))
         params = [q for _, _, draws in batch for q in draws[3]]
-        xs = oracle_flights({k: v[owner] for k, v in hits.items()}, target, speed, w_wanted, params)
+        net_height = np.concatenate([draws[4] for _, _, draws in batch])
+        xs = oracle_flights({k: v[owner] for k, v in hits.items()}, target, speed, w_wanted, params,
+                            net_height)
         out += [x[np.isfinite(x)] for x in xs.reshape(len(batch), n_draws)]
     return out
 

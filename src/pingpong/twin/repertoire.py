@@ -25,6 +25,27 @@ stroke's speed is the aim's hint, and the net takes its share: off the paddle dr
 Bounce depth (m past the net) is drawn per stroke so that most first bounces land within
 0.10-0.70 m of the net, where the paper's lab saw most of them.
 
+Net-crossing height (`net_height`: the ball centre's height above the net's top edge, m) is drawn per
+shot with the target: the aim (`session._aim`) flies the ball at least that high over the net, so a
+stroke's arc is the player's choice, not the lowest path that clears the tape (the earlier twin's: every
+shot crossed 5-9 cm over the net, p10-p90, where real rallies spread over ~24 cm, issue 41). Figures:
+- topspin defence ("fish", from off the table against a smash or a loop kill): "the ball crosses the net
+  perhaps one to three feet high [0.30-0.91 m], sometimes higher or lower", with topspin (sometimes
+  sidespin), landing deep (L. Hodges, "Topspin Defense", Tip of the Week, tabletenniscoaching.com,
+  2019-09-16);
+- the lob: "a good lob ... can go 15 feet [4.6 m] or more in the air, has lots of topspin or sidespin,
+  and lands deep on the table (some players lob lower but with more spin)" (L. Hodges, Table Tennis:
+  Steps to Success, Human Kinetics 1993, Step 11 "Lobbing"). The twin's lobs are the lower, spinnier
+  kind, aimed 0.8-1.2 m over the net: the rig's cameras (`twin.rig`) see ~1.8 m above the table,
+  and a ball out of every view for more than the curation's flight gap (0.15 s) is a lost shot, in a
+  lab as here;
+- the smash answers a high ball (`SMASH_HEIGHT`; "hit a lob above eye level", L. Hodges, "Smashing
+  Lobs", Tip of the Week, 2019-09-09);
+- the slow, spinny loop arcs "a little higher than usual, making it go deep" (L. Hodges, "Super Spinny
+  Slow Loops", tabletenniscoaching.com, 2013-02-04): loops are aimed 6-32 cm over the net. No
+  source at hand gave heights in numbers for drives, loops, pushes, flicks, blocks or smashes: their
+  ranges (a few cm to 15-25 cm over the tape) are the project's choice.
+
 Lanes (the hitter's own frame, after the dataset's mirror: left x < 0, right x > 0 seen from the robot)
 are weighted towards the right as in the paper's data (Table 2: right 45 %, centre 36 %, left 18 %).
 """
@@ -57,29 +78,37 @@ class StrokeKind:
     exec_factor: float  # scales the player's placement noise
     swing_scale: float  # backswing and follow-through length relative to a drive
     twist_scale: float  # trunk rotation relative to a drive
+    net_height: tuple[float, float]  # m, the ball centre's height above the net's top edge (module doc)
 
 
 STROKES = {
     "drive": StrokeKind((14.0, 18.0), (25.0, 45.0), False, (0.0, 0.25), (0.80, 1.20), (0.20, 0.30),
-                        1.0, 1.0, 1.0, 1.0),
+                        1.0, 1.0, 1.0, 1.0, (0.03, 0.16)),
     "loop": StrokeKind((10.0, 14.0), (50.0, 100.0), False, (0.0, 0.35), (0.45, 0.90), (0.28, 0.40),
-                       0.6, 1.1, 1.2, 1.3),
+                       0.6, 1.1, 1.2, 1.3, (0.06, 0.32)),
     "sidespin": StrokeKind((8.0, 11.0), (35.0, 70.0), False, (0.6, 1.3), (0.40, 0.80), (0.18, 0.28),
-                           1.0, 1.2, 1.1, 1.1),
+                           1.0, 1.2, 1.1, 1.1, (0.05, 0.25)),
     "push": StrokeKind((4.0, 6.0), (15.0, 35.0), True, (0.0, 0.35), (0.30, 0.65), (0.14, 0.22),
-                       0.8, 0.8, 0.5, 0.4),
+                       0.8, 0.8, 0.5, 0.4, (0.03, 0.12)),
     "flick": StrokeKind((7.0, 10.0), (20.0, 40.0), False, (0.0, 0.4), (0.40, 0.75), (0.09, 0.15),
-                        1.5, 1.2, 0.6, 0.5),
+                        1.5, 1.2, 0.6, 0.5, (0.05, 0.20)),
     "block": StrokeKind((6.0, 9.0), (5.0, 20.0), False, (0.0, 0.3), (0.40, 0.75), (0.06, 0.12),
-                        1.3, 0.9, 0.4, 0.3),
+                        1.3, 0.9, 0.4, 0.3, (0.03, 0.12)),
     "smash": StrokeKind((15.0, 19.0), (10.0, 25.0), False, (0.0, 0.2), (0.60, 1.10), (0.24, 0.34),
-                        0.3, 1.4, 1.3, 1.2),
+                        0.3, 1.4, 1.3, 1.2, (0.03, 0.15)),
+    # topspin defence and the lob (module doc: Hodges 2019, 1993): slow, high, topspin, deep; the speed hint
+    # only starts the aim, the net height sets the arc (a 0.3-0.9 m crossing flies at 6-9 m/s)
+    "fish": StrokeKind((7.0, 10.0), (30.0, 60.0), False, (0.0, 0.5), (0.85, 1.15), (0.20, 0.30),
+                       0.5, 1.2, 1.1, 0.9, (0.30, 0.91)),
+    "lob": StrokeKind((6.0, 9.0), (45.0, 80.0), False, (0.0, 0.6), (0.95, 1.20), (0.22, 0.32),
+                      0.3, 1.3, 1.2, 0.8, (0.80, 1.20)),
 }
 STROKE_NAMES = tuple(STROKES)
 # Drive-heavy, as attacking players are: the good shots' speed p90 reaches 12.2-12.3 m/s with 21-27 %
 # backspin on the default seed's sessions s00-s03 and s04-s07 (0.24 drives, 0.26 pushes: 11.5-12.0 m/s).
+# Topspin defence and lobs are answers to pressure (stroke_weights), rare on easy balls.
 BASE_MIX = {"drive": 0.32, "loop": 0.20, "sidespin": 0.14, "push": 0.20, "flick": 0.06, "block": 0.08,
-            "smash": 0.0}
+            "smash": 0.0, "fish": 0.05, "lob": 0.025}
 DECEPTION = {  # reveal time scale, late-change rate
     "telegraph": (1.3, 0.01),
     "neutral": (1.0, 0.10),
@@ -87,7 +116,10 @@ DECEPTION = {  # reveal time scale, late-change rate
 }
 DECEPTION_WEIGHTS = (0.3, 0.4, 0.3)
 HOMOSCEDASTIC_LATE_RATE = 0.15  # the control twin's (and the earlier twin's) share of late changes
-SMASH_HEIGHT = 0.27  # m above the table at the hitting plane: higher balls invite a smash
+# m above the table at the hitting plane: higher balls invite a smash. 0.27 m when every shot skimmed the
+# net; with arcs over the net (STROKES' net_height) 0.27 m made a fifth of all shots smashes (4 default
+# sessions), so a smash now needs a ball well above the net's top (0.25 m over it)
+SMASH_HEIGHT = 0.40
 
 
 @dataclass(frozen=True)
@@ -165,6 +197,9 @@ def stroke_weights(tactics: Tactics, ctx: ShotContext) -> np.ndarray:
         w["drive"] *= float(np.clip((z - 0.10) / 0.12, 0.1, 2.5))
         w["loop"] *= float(np.clip((0.34 - z) / 0.12, 0.2, 1.5)) * (1 - 0.6 * p)
         w["sidespin"] *= 1 - 0.6 * p
+        # played from off the table against fast balls (Hodges 2019: "against a smash or a loop kill")
+        w["fish"] *= (0.2 if ctx.backspin_in else 1.0) * (0.4 + 2.0 * p)
+        w["lob"] *= (0.1 if ctx.backspin_in else 1.0) * (0.2 + 2.5 * p)
         if ctx.p_hit[2] > SMASH_HEIGHT:
             w["smash"] = 3.0 * sum(w.values())
     total = np.array(list(w.values()))
@@ -207,13 +242,15 @@ def _lane_point(rng, lanes: np.ndarray, kind: StrokeKind, ctx: ShotContext) -> n
 
 def draw_intent(rng: np.random.Generator, tactics: Tactics, timing: ShotTiming, ctx: ShotContext,
                 n: int) -> dict:
-    """Decision 2, n draws: lane (n,), bounce target (n, 2), speed (n,) m/s, spin (n,) rad/s, tilt (n,)."""
+    """Decision 2, n draws: lane (n,), bounce target (n, 2), speed (n,) m/s, spin (n,) rad/s, tilt (n,),
+    net_height (n,) m: the ball centre's height over the net's top edge the shot is aimed at (at least)."""
     kind = STROKES[timing.stroke]
     lanes = rng.choice(np.array(LANES), size=n, p=tactics.lane_weights)
     target = _lane_point(rng, lanes, kind, ctx)
     return {"lane": lanes, "target": target, "speed": rng.uniform(*kind.speed, n),
             "spin": REV * rng.uniform(*kind.spin, n),
-            "tilt": rng.uniform(*kind.tilt, n) * rng.choice([-1.0, 1.0], n)}
+            "tilt": rng.uniform(*kind.tilt, n) * rng.choice([-1.0, 1.0], n),
+            "net_height": rng.uniform(*kind.net_height, n)}
 
 
 def draw_late(rng: np.random.Generator, tactics: Tactics, timing: ShotTiming, ctx: ShotContext,
@@ -247,14 +284,15 @@ def draw_execution(rng: np.random.Generator, tactics: Tactics, timing: ShotTimin
 
 
 def executed_shot(ctx: ShotContext, timing: ShotTiming, intent: dict, final: dict, execution: dict):
-    """Bounce targets (n, 2), speed hints (n,) and wanted spins (n, 3) of decided shots."""
+    """Bounce targets (n, 2), speed hints (n,), wanted spins (n, 3) and net heights (n,) m of decided shots
+    (the height as intended: the execution's error shows in the bounce point, speed and spin)."""
     target = final["target"] + execution["target_error"]
     # an error towards the net leaves the ball at least 10 cm past it (nearer, no shot clears the net)
     target[:, 1] = -ctx.side * np.maximum(-ctx.side * target[:, 1], 0.10)
     speed = intent["speed"] * execution["speed_factor"]
     w = spin_vector(target, ctx.p_hit, intent["spin"] * execution["spin_factor"], intent["tilt"],
                     STROKES[timing.stroke].backspin)
-    return target, speed, w
+    return target, speed, w, intent["net_height"]
 
 
 def spin_vector(target: np.ndarray, p_hit: np.ndarray, spin: np.ndarray, tilt: np.ndarray,

@@ -78,8 +78,9 @@ def _fault_target(rng, target: np.ndarray, side: int, fault: str) -> np.ndarray:
     return np.array([x, y])
 
 
-def _aim(p_hit, v_in, w_in, target, w_wanted, speed, params: BallParams, fault: str):
-    """Outgoing velocity and spin, and the paddle (normal, velocity) that produce them.
+def _aim(p_hit, v_in, w_in, target, w_wanted, speed, params: BallParams, fault: str, net_height: float):
+    """Outgoing velocity and spin, and the paddle (normal, velocity) that produce them; the ball centre
+    crosses the net at least net_height (m) over its top edge (a shot into the net: 5 cm under it).
 
     Aimed with the spin wanted, the paddle brushes the ball for it (paddle_for_spin); the shot is
     re-aimed with the spin the impact actually gives and the paddle solved again, so the spin flown is
@@ -87,7 +88,8 @@ def _aim(p_hit, v_in, w_in, target, w_wanted, speed, params: BallParams, fault: 
     """
     w, paddle = w_wanted, None
     for _ in range(2):
-        v_out = _aim_slower(p_hit, target, w, params, speed, -0.05 if fault == "net" else 0.03)
+        v_out = _aim_slower(p_hit, target, w, params, speed,
+                            -0.05 if fault == "net" else net_height - params.radius)
         if fault == "net":  # aim into the tape: drop the shot until it no longer clears
             v_out = v_out * np.array([1.0, 0.93, 0.75])
         paddle = paddle_for_spin(v_in, w_in, v_out, w, params, start=paddle)
@@ -259,10 +261,11 @@ def simulate_rallies(n_rallies: int, rates: FaultRates, rng: np.random.Generator
                 rec.flight(t, flight, rally, shot)
                 t += flight.times[-1]
                 break
-            target, speed, w_wanted = executed_shot(ctx, timing, intent, final, execution)
+            target, speed, w_wanted, net_height = executed_shot(ctx, timing, intent, final, execution)
             target = _fault_target(rng, target[0], side, fault)
             speed = {"double_bounce": 3.0, "net": 7.0}.get(fault, speed[0])
-            v_out, w_out, normal, v_paddle = _aim(p, v_in, w_in, target, w_wanted[0], speed, params, fault)
+            v_out, w_out, normal, v_paddle = _aim(p, v_in, w_in, target, w_wanted[0], speed, params, fault,
+                                                  float(net_height[0]))
             back = rng.uniform(0.15, 0.5)  # how far behind the end line the receiver can take the ball
             flight = _meet_at_top(simulate_flight(p, v_out, w_out, params, t_max=3.0,
                                                   stop=stop_at_y(-side * (TABLE_HALF_LENGTH + back))), -side)
