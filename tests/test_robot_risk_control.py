@@ -49,7 +49,7 @@ def test_chosen_lambda_controls_the_risk(bound, testing):
     delta share of the time (with 3 standard errors of Monte Carlo slack); choosing by the empirical
     risk alone (no bound) exceeds it far more often, so the check can fail."""
     rng = np.random.default_rng(0)
-    draws, n, epsilon, delta = 1500, 41, 0.1, 0.1
+    draws, n, epsilon, delta = 1000, 41, 0.1, 0.1
     chosen, naive = [], []
     for _ in range(draws):
         excess = draw_excess(rng, n)

@@ -30,7 +30,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from scipy.optimize import brentq
 from scipy.stats import beta, binom
 
 from pingpong.common.config import Settings
@@ -116,29 +115,31 @@ def binomial_upper_bound(excess: np.ndarray, delta: float) -> float:
     return pi_upper * max(2 * q_upper - 1, 0.0)
 
 
-def hoeffding_bentkus_p(mean_loss: float, n: int, level: float) -> float:
-    """p-value of the null 'risk > level' for n losses in [0, 1] of mean mean_loss (Bates et al. 2021,
-    Prop. 3: the smaller of Hoeffding's and Bentkus's)."""
-    a = min(mean_loss, level)
+def hoeffding_bentkus_p(mean_loss: float, n: int, level) -> np.ndarray:
+    """p-values of the nulls 'risk > level' (level: array) for n losses in [0, 1] of mean mean_loss (Bates
+    et al. 2021, Prop. 3: the smaller of Hoeffding's and Bentkus's)."""
+    level = np.asarray(level, float)
+    a = np.minimum(mean_loss, level)
     with np.errstate(divide="ignore", invalid="ignore"):
-        h1 = (a * np.log(a / level) if a > 0 else 0.0) + (
-            (1 - a) * np.log((1 - a) / (1 - level)) if a < 1 else np.inf)
-    hoeffding = float(np.exp(-n * h1))
-    bentkus = float(np.e * binom.cdf(np.ceil(n * mean_loss), n, level))
-    return min(hoeffding, bentkus, 1.0)
+        h1 = (np.where(a > 0, a * np.log(a / level), 0.0)
+              + np.where(a < 1, (1 - a) * np.log((1 - a) / (1 - level)), np.inf))
+    hoeffding = np.exp(-n * h1)
+    bentkus = np.e * binom.cdf(np.ceil(n * mean_loss), n, level)
+    return np.minimum(np.minimum(hoeffding, bentkus), 1.0)
+
+
+HB_LEVELS = 4000  # grid of the bound's search; the bound is the grid level above the exact one
 
 
 def hoeffding_bentkus_upper_bound(excess: np.ndarray, delta: float) -> float:
     """(1 - delta) upper bound of the mean of excess in [-1, 1]: the smallest risk level above which the
     Hoeffding-Bentkus test of the [0, 1]-mapped losses rejects 'risk > level' at delta (its p-value falls
-    as the level rises above the mean loss)."""
+    as the level rises above the mean loss), searched on a grid and rounded up (conservative)."""
     loss = (np.asarray(excess, float) + 1) / 2
     n, mean = len(loss), float(loss.mean())
-    top = 1 - 1e-12
-    excess_p = lambda level: hoeffding_bentkus_p(mean, n, level) - delta  # noqa: E731
-    if mean >= top or excess_p(top) > 0:  # not rejected even at the largest loss
-        return 1.0
-    return 2 * brentq(excess_p, mean, top, xtol=1e-10) - 1
+    levels = np.linspace(mean, 1, HB_LEVELS + 1)[1:-1]
+    rejected = np.flatnonzero(hoeffding_bentkus_p(mean, n, levels) <= delta)
+    return 1.0 if len(rejected) == 0 else float(2 * levels[rejected[0]] - 1)
 
 
 UPPER_BOUNDS = {"binomial": binomial_upper_bound, "hoeffding_bentkus": hoeffding_bentkus_upper_bound}
