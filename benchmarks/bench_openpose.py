@@ -20,6 +20,7 @@ from pingpong.twin import truth as twin_truth
 from pingpong.twin.openpose_sim import (
     OCCLUDER_RADIUS,
     _occluded,
+    default_keypoint_errors,
     projected_people,
     simulate_openpose,
     simulate_openpose_frames,
@@ -68,13 +69,15 @@ def main():
 
     def one_at_a_time():
         rng = np.random.default_rng(0)
-        return [simulate_openpose(camera, [b for b in bodies[:, f] if not np.isnan(b).all()], rng)
+        return [simulate_openpose(camera, [b for b in bodies[:, f] if not np.isnan(b).all()], rng,
+                                  default_keypoint_errors())
                 for f in range(n)]
 
     def chunked():
         rng = np.random.default_rng(0)
         return [people for first in range(0, n, a.chunk)
-                for people in simulate_openpose_frames(camera, bodies[:, first:first + a.chunk], rng)]
+                for people in simulate_openpose_frames(camera, bodies[:, first:first + a.chunk], rng,
+                                                                 default_keypoint_errors())]
 
     per_frame_s, one = best_time(one_at_a_time, 3)
     chunked_s, many = best_time(chunked, 3)

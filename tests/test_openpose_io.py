@@ -24,7 +24,15 @@ from pingpong.io.openpose_json import (
     to_body25,
     write_keypoints_json,
 )
-from pingpong.twin.openpose_sim import simulate_openpose, simulate_openpose_frames
+from pingpong.twin.openpose_sim import (
+    COCO_SIGMAS,
+    default_keypoint_errors,
+    object_scale,
+    projected_people,
+    self_hidden,
+    simulate_openpose,
+    simulate_openpose_frames,
+)
 from pingpong.twin.rig import make_rig
 
 OPENPOSE_KEYS = ["person_id", "pose_keypoints_2d", "face_keypoints_2d", "hand_left_keypoints_2d",
@@ -200,28 +208,56 @@ STANDING = np.array([
     (-0.13, 0.04, 0.03)]) + [0, 0, -0.76]
 
 
-def test_simulated_keypoints_are_noisy_projections_in_shuffled_order():
+def test_simulated_keypoints_err_as_configured_in_shuffled_order():
+    """Each joint's RMS error in plain view is sigma_scale x COCO's sigma of the person's scale s (the
+    twin's detector), hidden joints err more, and the people come in random order."""
     rng = np.random.default_rng(1)
     camera = make_rig(rng)[2]  # at the -y end, looking at the far (+y) player
     far_player = STANDING + [0.0, 2.4, 0.0]
     bystander = STANDING + [2.5, 1.0, 0.0]
     truths = [camera.project(far_player), camera.project(bystander)]
-    errors, first_is_player = [], []
-    for _ in range(200):
-        people = simulate_openpose(camera, [far_player, bystander], rng, swap_rate=0.0)
-        assert people.shape[1:] == (25, 3)
-        which = []
-        for person in people:
-            detected = person[:, 2] > 0
-            k = int(np.argmin([np.median(np.linalg.norm(person[detected, :2] - t[detected], axis=1))
-                               for t in truths]))
-            errors.append(person[detected, :2] - truths[k][detected])
-            assert (person[~detected] == 0).all()
-            which.append(k)
-        first_is_player.append(which[0] == 0)
-    sigma = np.concatenate(errors).std()
-    assert 0.8 < sigma < 2.5  # 3 px at 1440 px width -> 1 px at 480, 1.5x on wrists and ankles
-    assert 0.3 < np.mean(first_is_player) < 0.7  # random order
+    _, px, depth = projected_people(camera, np.stack([far_player, bystander])[:, None])
+    scale = object_scale(px)[:, 0]
+    hidden = self_hidden(px, depth, camera.K[0, 0])[:, 0]
+    for sigma_scale in (1.0, 2.0):
+        errors = default_keypoint_errors(swap_rate=0.0, sigma_scale=sigma_scale, miss_rate=0.0)
+        shares, first_is_player = [], []
+        for _ in range(200):
+            people = simulate_openpose(camera, [far_player, bystander], rng, errors)
+            assert people.shape[1:] == (25, 3)
+            which = []
+            for person in people:
+                detected = person[:, 2] > 0
+                k = int(np.argmin([np.median(np.linalg.norm(person[detected, :2] - t[detected], axis=1))
+                                   for t in truths]))
+                clear = detected & ~hidden[k]
+                shares.append(np.linalg.norm(person[clear, :2] - truths[k][clear], axis=1)
+                              / (COCO_SIGMAS[clear] * scale[k]))
+                assert (person[~detected] == 0).all()
+                which.append(k)
+            first_is_player.append(which[0] == 0)
+        rms = np.sqrt(np.mean(np.concatenate(shares) ** 2))
+        assert 0.9 * sigma_scale < rms < 1.1 * sigma_scale
+        assert 0.3 < np.mean(first_is_player) < 0.7  # random order
+
+
+def test_joints_behind_the_trunk_are_hidden_lost_or_unsure():
+    """Seen from behind, a player's hands held in front of the chest are behind the trunk: lost at
+    hidden_miss, else reported with confidences under 0.4; the shoulders are in plain view."""
+    rng = np.random.default_rng(4)
+    camera = make_rig(rng)[2]  # at the -y end, looking along +y
+    # between the camera and the table, straight ahead of the camera, its back to it
+    player = STANDING + [camera.center[0], -1.8, 0.0]
+    player[[4, 7]] = player[[1]] + [[0.1, 0.35, -0.3], [-0.1, 0.35, -0.3]]  # wrists in front of the chest
+    _, px, depth = projected_people(camera, player[None, None])
+    hidden = self_hidden(px, depth, camera.K[0, 0])[0, 0]
+    assert hidden[[4, 7]].all() and not hidden[[2, 5]].any()
+    errors = default_keypoint_errors(swap_rate=0.0, miss_rate=0.0)
+    people = np.stack([simulate_openpose(camera, [player], rng, errors)[0]
+                       for _ in range(300)])
+    wrists = people[:, [4, 7], 2]
+    assert 0.4 < np.mean(wrists == 0) < 0.6  # hidden_miss 0.5
+    assert (wrists[wrists > 0] <= 0.4).all() and (people[:, [2, 5], 2] >= 0.275).all()
 
 
 def test_out_of_image_joints_are_zero_and_swaps_happen():
@@ -229,13 +265,14 @@ def test_out_of_image_joints_are_zero_and_swaps_happen():
     camera = make_rig(rng)[2]
     player = STANDING + [0.0, 2.4, 0.0]
     px = camera.project(player)
-    people = simulate_openpose(camera, [player], rng, swap_rate=1.0)
+    people = simulate_openpose(camera, [player], rng, default_keypoint_errors(swap_rate=1.0))
     assert len(people) == 1
     # with swap_rate 1 one limb's right and left joints trade places
     right_wrist_near_left = np.linalg.norm(people[0, 4, :2] - px[7]) < 8 or \
         np.linalg.norm(people[0, 11, :2] - px[14]) < 8 or np.linalg.norm(people[0, 24, :2] - px[21]) < 8
     assert right_wrist_near_left
-    behind = simulate_openpose(camera, [player - [0.0, 10.0, 0.0]], rng)  # behind the camera
+    behind = simulate_openpose(camera, [player - [0.0, 10.0, 0.0]], rng,
+                               default_keypoint_errors())  # behind the camera
     assert behind.shape == (0, 25, 3)
 
 
@@ -247,7 +284,7 @@ def test_frames_at_once_drop_absent_people_and_hide_the_occluded():
     beside = far_player + [1.5, 0.0, 0.0]
     bodies = np.stack([np.stack([far_player] * 4), np.stack([in_front, beside, beside, beside])])
     bodies[1, 3] = np.nan  # the second person leaves in the last frame
-    frames = simulate_openpose_frames(camera, bodies, rng, swap_rate=0.0)
+    frames = simulate_openpose_frames(camera, bodies, rng, default_keypoint_errors(swap_rate=0.0))
     assert [len(f) for f in frames] == [2, 2, 2, 1]
     truths = camera.project(far_player), camera.project(in_front)
 
@@ -435,7 +472,7 @@ def posed_people(pose: str, rng: np.random.Generator, n_frames: int = 40) -> np.
     bodies = np.array([[_rotated(posed_body(pose), "z", rng.uniform(0, 360))
                         + [rng.uniform(-1.0, 1.0), rng.uniform(1.5, 3.0), -0.76] for _ in range(n_frames)]
                        for _ in range(2)])
-    frames = simulate_openpose_frames(camera, bodies, rng)
+    frames = simulate_openpose_frames(camera, bodies, rng, default_keypoint_errors())
     out = np.zeros((n_frames, 2, 25, 3))
     for f, people in enumerate(frames):
         out[f, :len(people)] = people

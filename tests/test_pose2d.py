@@ -21,7 +21,7 @@ from pingpong.perception.pose3d import PoseSceneError, pose3d_table
 from pingpong.perception.scene import default_players_scene
 from pingpong.perception.schemas import POSE2D
 from pingpong.perception.triangulation import reprojection_gate_px
-from pingpong.twin.openpose_sim import LIMB_SWAPS, simulate_openpose
+from pingpong.twin.openpose_sim import LIMB_SWAPS, default_keypoint_errors, simulate_openpose
 from pingpong.twin.players import bystander_joints
 from pingpong.twin.rig import make_rig
 from pingpong.twin.session import FaultRates, simulate_session
@@ -33,7 +33,8 @@ ASSOCIATION_SHARE = 0.02  # config perception.association_share's default
 
 def _openpose(camera, bodies, rng, swap_rate=0.01):
     """(F, P, 25, 3) simulated OpenPose people of every frame of bodies (F, 3, 25, 3), zero-padded."""
-    frames = [simulate_openpose(camera, [b for b in bodies[f] if not np.isnan(b).all()], rng, swap_rate)
+    frames = [simulate_openpose(camera, [b for b in bodies[f] if not np.isnan(b).all()], rng,
+                                 default_keypoint_errors(swap_rate=swap_rate))
               for f in range(len(bodies))]
     out = np.zeros((len(frames), max(map(len, frames)), 25, 3))
     for f, people in enumerate(frames):

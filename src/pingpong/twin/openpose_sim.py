@@ -1,22 +1,97 @@
-"""What OpenPose reports for a camera's frames, from the true 3D joints of everyone in view.
+"""What OpenPose reports for a camera's frames, from the true 3D joints of everyone in view: a keypoint
+detector's errors, at rates set in config twin.keypoint_errors (`KeypointErrors`).
 
-Per person: project the BODY_25 joints (with distortion), add pixel noise (std 3 px at 1440 px
-width, scaled with the image width, 1.5x at wrists and ankles), give confidences (0.55-0.95 when
-clear, 0.05-0.4 when occluded by a nearer person, those dropped with probability 0.5), zero joints
-outside the image or behind the camera, drop people with fewer than 6 joints left, swap one
-left/right limb now and then, and shuffle the order of the people.
+Per person and frame (`simulate_openpose_frames`):
+- Noise that scales with the person's size in the image: per joint, an RMS 2D error of
+  sigma_scale * sigma_i * s, where sigma_i is COCO's per-keypoint standard deviation of the error as a
+  share of the object scale s = sqrt(area) (COCO keypoint evaluation, cocodataset.org/#keypoints-eval;
+  the values of pycocotools' cocoeval.py, `COCO_SIGMAS`), and s is taken from the joints' bounding box
+  (`object_scale`). The error is correlated over frames (an AR(1) process of correlation_s), as a
+  detector's is: it errs the same way on similar images.
+- Occlusion: joints behind the own trunk from the camera's view (`self_hidden`) or behind a nearer
+  person (`_occluded`) err hidden_scale times more, get confidences 0.05-0.4 (below the pose stage's
+  0.3 mostly), and are lost (written 0, 0, 0, as OpenPose writes a missing joint) with probability
+  hidden_miss.
+- Motion: a joint moving in the image during the exposure (exposure_s) lands anywhere on its streak,
+  and its confidence falls with the streak's length against the joint's noise.
+- Left/right swaps of a whole arm, leg or foot, starting at swap_rate per person and frame and lasting
+  swap_frames on average; the swapped joints' confidences drop (x 0.5-0.9).
+- Visible joints lost at miss_rate; joints outside the image or behind the camera are 0; people with
+  fewer than MIN_JOINTS joints are not reported, and the order of the people is shuffled.
+False people (spectators walking behind the far court, `spectator_joints`) are added by the rule.
 """
 
+from dataclasses import dataclass, field
+
 import numpy as np
+from scipy.signal import lfilter
 
 from pingpong.common.camera import Camera
+from pingpong.common.config import Settings
+from pingpong.frames import BODY25, FRAME_NS, TABLE_HALF_LENGTH
+from pingpong.twin.players import FLOOR_Z, base_frame, body_dims, pose_joints, sample_player_style
 
+J = {name: i for i, name in enumerate(BODY25)}
 # BODY_25 index groups that OpenPose confuses as a whole when it swaps sides
 LIMB_SWAPS = (((2, 3, 4), (5, 6, 7)), ((9, 10, 11), (12, 13, 14)), ((22, 23, 24), (19, 20, 21)))
-NOISY_JOINTS = (4, 7, 11, 14)  # wrists and ankles
-_JOINT_NOISE = np.where(np.isin(np.arange(25), NOISY_JOINTS), 1.5, 1.0)  # per joint, relative
+# COCO's per-keypoint sigmas (pycocotools cocoeval.py: [.26 .25 .25 .35 .35 .79 .79 .72 .72 .62 .62 1.07
+# 1.07 .87 .87 .89 .89] / 10 for nose, eyes, ears, shoulders, elbows, wrists, hips, knees, ankles),
+# mapped onto BODY_25; the neck and mid-hip (not COCO keypoints) as the shoulders and hips, the feet
+# (toes, heels) as the ankles.
+_COCO = {"Nose": 0.026, "Eye": 0.025, "Ear": 0.035, "Shoulder": 0.079, "Elbow": 0.072, "Wrist": 0.062,
+         "Hip": 0.107, "Knee": 0.087, "Ankle": 0.089, "Neck": 0.079, "BigToe": 0.089, "SmallToe": 0.089,
+         "Heel": 0.089}
+COCO_SIGMAS = np.array([_COCO[n[1:] if n[0] in "RL" and n[1:] in _COCO else n.removeprefix("Mid")]
+                        for n in BODY25])
+# A person's segment area as a share of the bounding box of its keypoints: COCO's scale is the segment
+# area's root, and detectors evaluated without masks take 0.53 of the box (luxonis-train's and
+# Ultralytics' OKS area_factor).
+AREA_PER_BOX = 0.53
 OCCLUDER_RADIUS = 0.15  # m, a person's width around the line of their joints, for occlusion tests
+TRUNK_HALF_WIDTH = 0.17  # m, the trunk's half width about the neck to mid-hip line (chest, ~0.1 h)
+TRUNK_HALF_DEPTH = 0.10  # m, a joint this far behind the trunk's axis is behind the trunk
+TRUNK_AXIS = (J["Neck"], J["MidHip"])
 MIN_JOINTS = 6
+
+
+@dataclass(frozen=True)
+class KeypointErrors(Settings):
+    """config twin.keypoint_errors (defaults and meanings in config/schema.yaml)."""
+
+    sigma_scale: float
+    correlation_s: float
+    hidden_scale: float
+    hidden_miss: float
+    miss_rate: float
+    swap_rate: float
+    swap_frames: float
+    exposure_s: float
+    false_people_rate: float
+
+
+def default_keypoint_errors(**changes) -> KeypointErrors:
+    """config/schema.yaml's defaults (a test holds them equal), with changes, for tests and benchmarks."""
+    values = dict(sigma_scale=1.0, correlation_s=0.1, hidden_scale=2.0, hidden_miss=0.5, miss_rate=0.02,
+                  swap_rate=0.01, swap_frames=3.0, exposure_s=0.004, false_people_rate=0.3)
+    return KeypointErrors(**{**values, **changes})
+
+
+@dataclass
+class Carry:
+    """What one chunk of frames leaves to the next: each person's last unit noise (P, 25, 2), and the
+    swap under way (frames left (P,), limb (P,))."""
+
+    noise: np.ndarray | None = None
+    swap_left: np.ndarray | None = None
+    swap_limb: np.ndarray | None = None
+    _ready: bool = field(default=False, repr=False)
+
+    def start(self, n_people: int, rng: np.random.Generator) -> None:
+        if not self._ready:
+            self.noise = rng.normal(0.0, 1.0, (n_people, 25, 2))
+            self.swap_left = np.zeros(n_people, int)
+            self.swap_limb = np.zeros(n_people, int)
+            self._ready = True
 
 
 def _occluded(px: np.ndarray, depth: np.ndarray, f: float) -> np.ndarray:
@@ -40,6 +115,30 @@ def _occluded(px: np.ndarray, depth: np.ndarray, f: float) -> np.ndarray:
     return hidden
 
 
+def self_hidden(px: np.ndarray, depth: np.ndarray, f: float) -> np.ndarray:
+    """(..., 25) True where a joint lies behind the person's own trunk from the camera: its pixel within
+    the trunk's projected half width of the neck to mid-hip segment, and deeper than the trunk's axis
+    there by more than TRUNK_HALF_DEPTH (a hand in front of the chest seen from behind, the far shoulder
+    seen from the side). px (..., 25, 2), depth (..., 25)."""
+    a, b = px[..., TRUNK_AXIS[0], :], px[..., TRUNK_AXIS[1], :]
+    ab = (b - a)[..., None, :]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = np.clip(np.sum((px - a[..., None, :]) * ab, -1) / np.sum(ab * ab, -1), 0.0, 1.0)
+        dist = np.linalg.norm(px - (a[..., None, :] + t[..., None] * ab), axis=-1)
+        axis_depth = depth[..., TRUNK_AXIS[0], None] * (1 - t) + depth[..., TRUNK_AXIS[1], None] * t
+        hidden = (dist < f * TRUNK_HALF_WIDTH / axis_depth) & (depth > axis_depth + TRUNK_HALF_DEPTH)
+    hidden[..., list(TRUNK_AXIS)] = False
+    return hidden
+
+
+def object_scale(px: np.ndarray) -> np.ndarray:
+    """(...,) COCO's object scale s = sqrt(area) of people's projected joints (..., 25, 2), px: the root of
+    AREA_PER_BOX of their bounding box; NaN where a person is absent."""
+    with np.errstate(invalid="ignore"):
+        extent = np.fmax.reduce(px, axis=-2) - np.fmin.reduce(px, axis=-2)
+        return np.sqrt(AREA_PER_BOX * extent[..., 0] * extent[..., 1])
+
+
 def projected_people(camera: Camera, joints: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(present (P, n), pixels (P, n, 25, 2), camera depths (P, n, 25)) of true joints (P, n, 25, 3); a
     person whose joints are all NaN in a frame is absent there, and their pixels and depths are NaN."""
@@ -52,38 +151,139 @@ def projected_people(camera: Camera, joints: np.ndarray) -> tuple[np.ndarray, np
     return present, px, depth
 
 
+def _correlated_noise(shape: tuple, carry: Carry, errors: KeypointErrors, rng) -> np.ndarray:
+    """Unit-variance Gaussian noise (P, n, 25, 2), AR(1) along the frames with correlation time
+    errors.correlation_s, continuing carry.noise (updated)."""
+    a = np.exp(-FRAME_NS * 1e-9 / errors.correlation_s) if errors.correlation_s > 0 else 0.0
+    innovation = rng.normal(0.0, 1.0, shape) * np.sqrt(1 - a * a)
+    noise, _ = lfilter([1.0], [1.0, -a], innovation, axis=1, zi=a * carry.noise[:, None])
+    carry.noise = noise[:, -1]
+    return noise
+
+
+def _blur(px: np.ndarray, errors: KeypointErrors, rng) -> tuple[np.ndarray, np.ndarray]:
+    """(offsets (P, n, 25, 2), streak lengths (P, n, 25) px): where on its motion streak during the
+    exposure each joint is found (uniform along it), from its image velocity."""
+    if px.shape[1] < 2:
+        return np.zeros(px.shape), np.zeros(px.shape[:-1])
+    # px/s; 0 where a neighbouring frame lacks the person
+    velocity = np.nan_to_num(np.gradient(px, axis=1)) / (FRAME_NS * 1e-9)
+    streak = velocity * errors.exposure_s
+    along = rng.uniform(-0.5, 0.5, px.shape[:-1])
+    return streak * along[..., None], np.linalg.norm(streak, axis=-1)
+
+
+def _swaps(kept: np.ndarray, carry: Carry, errors: KeypointErrors, rng) -> np.ndarray:
+    """(P, n) the limb (index into LIMB_SWAPS) swapped in each detection, -1 where none: swaps start at
+    swap_rate per detection and last a geometric number of frames of mean swap_frames."""
+    out = np.full(kept.shape, -1)
+    starts = rng.random(kept.shape) < errors.swap_rate
+    lengths = rng.geometric(1.0 / max(errors.swap_frames, 1.0), kept.shape)
+    limbs = rng.integers(len(LIMB_SWAPS), size=kept.shape)
+    for i in range(kept.shape[0]):
+        left, limb = carry.swap_left[i], carry.swap_limb[i]
+        for frame in range(kept.shape[1]):
+            if left <= 0 and starts[i, frame] and kept[i, frame]:
+                left, limb = lengths[i, frame], limbs[i, frame]
+            if left > 0:
+                out[i, frame] = limb if kept[i, frame] else -1
+                left -= 1
+        carry.swap_left[i], carry.swap_limb[i] = left, limb
+    return out
+
+
 def simulate_openpose_frames(camera: Camera, people_joints: np.ndarray, rng: np.random.Generator,
-                             swap_rate: float = 0.01) -> list[np.ndarray]:
+                             errors: KeypointErrors, carry: Carry | None = None) -> list[np.ndarray]:
     """OpenPose's people (p, 25, 3) [x px, y px, confidence] for each of n frames; absent joints are 0, 0, 0.
 
-    people_joints: true BODY_25 joints (P, n, 25, 3) per person (players and bystanders) and frame, table
-    frame; a person whose joints are all NaN in a frame is not there. Vectorised over frames (per frame
-    the work is a few dozen tiny array operations).
+    people_joints: true BODY_25 joints (P, n, 25, 3) per person (players, bystanders, spectators) and
+    frame, table frame; a person whose joints are all NaN in a frame is not there. carry: the state a
+    previous chunk of the same people's frames left (a new one when None). Vectorised over frames.
     """
     joints = np.asarray(people_joints, float)
+    carry = carry or Carry()
+    carry.start(len(joints), rng)
     present, px, depth = projected_people(camera, joints)
-    hidden = _occluded(px, depth, camera.K[0, 0])
+    f = camera.K[0, 0]
+    hidden = _occluded(px, depth, f) | self_hidden(px, depth, f)
     with np.errstate(invalid="ignore"):
         inside = (depth > 0.1) & (px[..., 0] >= 0) & (px[..., 0] < camera.width) & (px[..., 1] >= 0) \
             & (px[..., 1] < camera.height)
-    sigma = 3.0 * camera.width / 1440
-    scale = _JOINT_NOISE * np.where(hidden, 2.0, 1.0)
-    noisy = px + rng.normal(0.0, 1.0, px.shape) * (sigma * scale)[..., None]
-    confidence = np.where(hidden, rng.uniform(0.05, 0.4, hidden.shape), rng.uniform(0.55, 0.95, hidden.shape))
-    detected = inside & ~(hidden & (rng.random(hidden.shape) < 0.5)) & (rng.random(hidden.shape) > 0.02)
+    sigma = errors.sigma_scale * COCO_SIGMAS * object_scale(px)[..., None]  # (P, n, 25) RMS 2D error, px
+    per_axis = sigma / np.sqrt(2) * np.where(hidden, errors.hidden_scale, 1.0)
+    offsets, streak = _blur(px, errors, rng)
+    noisy = px + _correlated_noise(px.shape, carry, errors, rng) * per_axis[..., None] + offsets
+    with np.errstate(invalid="ignore", divide="ignore"):
+        sharp = np.exp(-np.nan_to_num(streak / sigma))  # 1 when still, falls as the streak outgrows the noise
+    confidence = np.where(hidden, rng.uniform(0.05, 0.4, hidden.shape),
+                          rng.uniform(0.55, 0.95, hidden.shape) * (0.5 + 0.5 * sharp))
+    lost = rng.random(hidden.shape) < np.where(hidden, errors.hidden_miss, errors.miss_rate)
+    detected = inside & ~lost
     people = np.where(detected[..., None], np.concatenate([noisy, confidence[..., None]], axis=-1), 0.0)
     kept = present & (detected.sum(axis=-1) >= MIN_JOINTS)
-    for i, frame in zip(*np.nonzero(kept & (rng.random(kept.shape) < swap_rate)), strict=True):
-        right, left = LIMB_SWAPS[rng.integers(len(LIMB_SWAPS))]
-        people[i, frame, list(right + left)] = people[i, frame, list(left + right)]
+    swapped = _swaps(kept, carry, errors, rng)
+    for limb, (right, left) in enumerate(LIMB_SWAPS):
+        i, frame = np.nonzero(swapped == limb)
+        sides = list(right + left)
+        people[i[:, None], frame[:, None], sides] = people[i[:, None], frame[:, None], list(left + right)]
+        people[i[:, None], frame[:, None], sides, 2] *= rng.uniform(0.5, 0.9, (len(i), len(sides)))
     order = np.argsort(np.where(kept, rng.random(kept.shape), np.inf), axis=0)  # a random order per frame
     return [people[order[:count, frame], frame] for frame, count in enumerate(kept.sum(axis=0))]
 
 
 def simulate_openpose(camera: Camera, people_joints: list[np.ndarray], rng: np.random.Generator,
-                      swap_rate: float = 0.01) -> np.ndarray:
+                      errors: KeypointErrors) -> np.ndarray:
     """OpenPose's people (P, 25, 3) for one frame of true BODY_25 joints (25, 3) per person
-    (`simulate_openpose_frames` of that one frame)."""
+    (`simulate_openpose_frames` of that one frame: no motion blur, fresh noise)."""
     if not people_joints:
         return np.zeros((0, 25, 3))
-    return simulate_openpose_frames(camera, np.stack(people_joints)[:, None], rng, swap_rate)[0]
+    return simulate_openpose_frames(camera, np.stack(people_joints)[:, None], rng, errors)[0]
+
+
+SPECTATOR_SPEED = (0.9, 1.4)  # m/s, walking
+SPECTATOR_BEHIND = (1.5, 2.5)  # m behind a table end's players' area (|y| up to 4.37 m): beyond the court
+
+
+def spectator_mask(n_frames: int, rate: float, rng: np.random.Generator) -> np.ndarray:
+    """(n,) frames in which a spectator is in the hall: intervals of 3-15 s covering about `rate` of them."""
+    present = np.zeros(n_frames, bool)
+    frames_per_s = 1e9 / FRAME_NS
+    while rate > 0 and present.mean() < rate:
+        length = int(rng.uniform(3.0, 15.0) * frames_per_s)
+        start = rng.integers(0, max(n_frames - length, 1))
+        present[start:start + length] = True
+    return present
+
+
+def spectator_joints(n_frames: int, rate: float, rng: np.random.Generator) -> np.ndarray:
+    """BODY_25 joints (n, 25, 3) of a spectator (NaN where absent) walking to and fro behind one table
+    end, beyond the players' areas, in about `rate` of the frames: a false person for the pose stages
+    (seen by the cameras of the other end). Arms swing, feet slide with the body (no gait)."""
+    t = np.arange(n_frames) * FRAME_NS * 1e-9
+    style = sample_player_style(rng)
+    dims = body_dims(style)
+    side = rng.choice([-1.0, 1.0])
+    y = side * (TABLE_HALF_LENGTH + 3.0 + rng.uniform(*SPECTATOR_BEHIND))
+    speed, span = rng.uniform(*SPECTATOR_SPEED), rng.uniform(2.0, 3.5)
+    phase = (speed * t / (2 * span) + rng.random()) % 1.0  # to and fro over x in [-span, span]
+    x = span * (4 * np.abs(phase - 0.5) - 1)
+    heading = np.where(np.gradient(x) >= 0, 1.0, -1.0)
+    root = np.column_stack([x, np.full(n_frames, y), np.full(n_frames, FLOOR_Z + 0.98 * dims.hip_height)])
+    out = np.empty((n_frames, 25, 3))
+    swing = 0.25 * np.sin(2 * np.pi * 0.9 * t)  # arm swing, m
+    for sign in (-1.0, 1.0):
+        walking = heading == sign
+        if not walking.any():
+            continue
+        base = base_frame(np.array([sign, 0.0]))
+        neck = root[walking] + [0.0, 0.0, dims.torso]
+        wrists = np.stack([neck + base @ (np.array([s * 0.17, 0.0, -0.5]) * style.height / 1.75)
+                           for s in (1.0, -1.0)], 1)
+        wrists[:, 0] += base[:, 1] * swing[walking, None]
+        wrists[:, 1] -= base[:, 1] * swing[walking, None]
+        hints = np.stack([neck + base @ np.array([s * 0.4, -0.3, -0.3]) for s in (1.0, -1.0)], 1)
+        n = int(walking.sum())
+        out[walking] = pose_joints(dims, base, root[walking], np.zeros(n), np.full(n, 0.05), wrists, hints,
+                                   root[walking], 0.25, 0.0)
+    out[~spectator_mask(n_frames, rate, rng)] = np.nan
+    return out

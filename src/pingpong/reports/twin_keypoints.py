@@ -1,0 +1,169 @@
+"""The twin's 2D keypoints against its truth: what its simulated detector got wrong, beside the published
+figures its rates come from (reports/tables/twin_keypoints.md).
+
+Each camera's OpenPose people are matched, frame by frame, to the players' projected true joints (the
+median distance over their reported joints under MATCH_SHARE of the player's scale); a person matched to
+no player is a false person (the bystander, the spectator). On the players' matched detections, per
+joint: the error against the projected truth (px, as a share of the player's joints' height in the image
+and of COCO's object scale s), misses (a joint in the image the JSON leaves at 0) and left/right swaps (a
+reported joint nearer the other side's true joint, the two apart by more than SWAP_APART_SHARE of s),
+for joints in plain view and hidden ones (behind the own trunk or a nearer person) apart.
+"""
+
+import numpy as np
+
+from pingpong.common.camera import Camera
+from pingpong.frames import BODY25
+from pingpong.perception.pose2d import MIRROR
+from pingpong.twin.openpose_sim import (
+    COCO_SIGMAS,
+    KeypointErrors,
+    _occluded,
+    object_scale,
+    projected_people,
+    self_hidden,
+)
+
+PLAYERS = ("near", "far")
+MATCH_SHARE = 0.5  # a detection is a player's when its median joint distance is under this share of s
+SWAP_APART_SHARE = 0.3  # a swap is told from noise only where the two sides' true joints lie this far apart
+# The joints of the table, left and right pooled: the COCO keypoints of the body (not the face or feet).
+JOINT_GROUPS = {"nose": ("Nose",), "shoulder": ("RShoulder", "LShoulder"), "elbow": ("RElbow", "LElbow"),
+                "wrist": ("RWrist", "LWrist"), "hip": ("RHip", "LHip"), "knee": ("RKnee", "LKnee"),
+                "ankle": ("RAnkle", "LAnkle")}
+SIDED = np.array([MIRROR[j] != j for j in range(25)])
+# The median of the 2D error's length when its RMS is 1 (a circular Gaussian: sqrt(ln 2)).
+MEDIAN_PER_RMS = np.sqrt(np.log(2.0))
+
+
+def _true_views(camera: Camera, truth_joints: np.ndarray) -> dict:
+    """Projected truth of the players and the bystander (P, n, 25, ...): pixels, inside the image, hidden,
+    object scale s and the joints' height in the image (px)."""
+    present, px, depth = projected_people(camera, truth_joints)
+    f = camera.K[0, 0]
+    with np.errstate(invalid="ignore"):
+        inside = (depth > 0.1) & (px[..., 0] >= 0) & (px[..., 0] < camera.width) & (px[..., 1] >= 0) \
+            & (px[..., 1] < camera.height)
+        height = np.fmax.reduce(px[..., 1], axis=-1) - np.fmin.reduce(px[..., 1], axis=-1)
+    return {"present": present, "px": px, "inside": inside, "scale": object_scale(px), "height": height,
+            "hidden": _occluded(px, depth, f) | self_hidden(px, depth, f)}
+
+
+def match_people(detections: np.ndarray, true_px: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """(F, K) the index of the true person each detection (F, K, 25, 3) is, -1 for none (false people and
+    padding): the nearest by median distance over its reported joints, under MATCH_SHARE of that person's
+    scale (F, P); each true person taken once per frame, nearest first."""
+    reported = detections[..., 2] > 0
+    dist = np.linalg.norm(detections[:, :, None, :, :2] - true_px[:, None], axis=-1)  # (F, K, P, 25)
+    dist = np.where(reported[:, :, None], dist, np.nan)
+    with np.errstate(invalid="ignore"):
+        ordered = np.sort(dist, axis=-1)
+        count = np.isfinite(dist).sum(-1)
+        median = np.take_along_axis(ordered, np.maximum(count - 1, 0)[..., None] // 2, -1)[..., 0]
+        ok = median < MATCH_SHARE * scale[:, None]
+    cost = np.where(ok, median, np.inf)
+    out = np.full(detections.shape[:2], -1)
+    for _ in range(min(cost.shape[1], cost.shape[2])):
+        flat = cost.reshape(len(cost), -1)
+        best = np.argmin(flat, axis=1)
+        frames = np.flatnonzero(np.isfinite(flat[np.arange(len(cost)), best]))
+        k, p = np.divmod(best[frames], cost.shape[2])
+        out[frames, k] = p
+        cost[frames, k, :] = np.inf
+        cost[frames, :, p] = np.inf
+    return out
+
+
+def camera_errors(camera: Camera, detections: np.ndarray, truth_joints: np.ndarray, names: list[str]) -> dict:
+    """One camera's keypoints against the truth of one session: per-joint arrays over the players'
+    matched detections, and the false-people frames.
+
+    detections (F, K, 25, 3) as read from the JSON, frame by frame with truth_joints (P, F, 25, 3) of the
+    people named in names (the players and any bystander)."""
+    view = _true_views(camera, truth_joints)
+    true_px = np.moveaxis(view["px"], 0, 1)  # (F, P, 25, 2)
+    who = match_people(detections, true_px, view["scale"].T)
+    players = [names.index(p) for p in PLAYERS]
+    reported_any = (detections[..., 2] > 0).any(-1)
+    false_frames = (reported_any & ~np.isin(who, players)).any(axis=1)
+    rows = {k: [] for k in ("error", "mirror_error", "reported", "inside", "hidden", "scale", "height",
+                            "apart")}
+    for p in players:
+        f, k = np.nonzero(who == p)
+        got = detections[f, k]
+        truth_px = view["px"][p, f]
+        rows["error"].append(np.linalg.norm(got[..., :2] - truth_px, axis=-1))
+        rows["mirror_error"].append(np.linalg.norm(got[..., :2] - truth_px[:, MIRROR], axis=-1))
+        rows["apart"].append(np.linalg.norm(truth_px - truth_px[:, MIRROR], axis=-1))
+        rows["reported"].append(got[..., 2] > 0)
+        rows["inside"].append(view["inside"][p, f])
+        rows["hidden"].append(view["hidden"][p, f])
+        rows["scale"].append(np.repeat(view["scale"][p, f, None], 25, 1))
+        rows["height"].append(np.repeat(view["height"][p, f, None], 25, 1))
+    out = {k: np.concatenate(v) for k, v in rows.items()}
+    out["false_frames"] = false_frames
+    out["frames"] = len(detections)
+    return out
+
+
+def _swapped(e: dict) -> np.ndarray:
+    apart = e["apart"] > SWAP_APART_SHARE * e["scale"]
+    return SIDED & e["reported"] & apart & (e["mirror_error"] < e["error"])
+
+
+def joint_rows(per_camera: list[dict], errors: KeypointErrors) -> list[dict]:
+    """One row per joint group over every camera: the 2D error of plain-view and hidden joints, misses and
+    swaps, beside COCO's sigma and the error the configured detector should make."""
+    e = {k: np.concatenate([c[k] for c in per_camera]) for k in per_camera[0] if k not in ("false_frames",
+                                                                                           "frames")}
+    swapped = _swapped(e)
+    rows = []
+    for group, joints in JOINT_GROUPS.items():
+        ids = [BODY25.index(j) for j in joints]
+        sel = np.zeros(25, bool)
+        sel[ids] = True
+        inside = e["inside"] & sel
+        clear = inside & e["reported"] & ~swapped & ~e["hidden"]
+        hidden = inside & e["reported"] & ~swapped & e["hidden"]
+        sigma = float(COCO_SIGMAS[ids[0]])
+        rows.append({
+            "joint": group, "coco_sigma": sigma,
+            "expected_median_per_s": errors.sigma_scale * sigma * MEDIAN_PER_RMS,
+            "median_per_s": _median(e["error"][clear] / e["scale"][clear]),
+            "median_px": _median(e["error"][clear]), "p90_px": _quantile(e["error"][clear], 0.9),
+            "median_per_height_pct": 100 * _median(e["error"][clear] / e["height"][clear]),
+            "hidden_median_px": _median(e["error"][hidden]),
+            "hidden_pct": 100 * _share(e["hidden"][inside]),
+            "miss_visible_pct": 100 * _share(~e["reported"][inside & ~e["hidden"]]),
+            "miss_hidden_pct": 100 * _share(~e["reported"][inside & e["hidden"]]),
+            "swap_pct": 100 * _share(swapped[inside & e["reported"]]) if SIDED[ids[0]] else np.nan,
+            "n": int(inside.sum())})
+    return rows
+
+
+def camera_rows(cams: list[str], per_camera: list[dict]) -> list[dict]:
+    """Per camera: the share of frames with a false person (someone matched to no player), of the
+    players' joints missed and swapped."""
+    rows = []
+    for cam in sorted(set(cams)):
+        mine = [c for name, c in zip(cams, per_camera, strict=True) if name == cam]
+        e = {k: np.concatenate([c[k] for c in mine]) for k in ("reported", "inside", "hidden", "error",
+                                                                "mirror_error", "apart", "scale")}
+        false = np.concatenate([c["false_frames"] for c in mine])
+        rows.append({"camera": cam, "frames": len(false), "false_people_frames_pct": 100 * false.mean(),
+                     "miss_pct": 100 * _share(~e["reported"][e["inside"]]),
+                     "hidden_pct": 100 * _share(e["hidden"][e["inside"]]),
+                     "swap_pct": 100 * _share(_swapped(e)[e["inside"] & e["reported"] & SIDED])})
+    return rows
+
+
+def _median(x: np.ndarray) -> float:
+    return float(np.median(x)) if len(x) else np.nan
+
+
+def _quantile(x: np.ndarray, q: float) -> float:
+    return float(np.quantile(x, q)) if len(x) else np.nan
+
+
+def _share(x: np.ndarray) -> float:
+    return float(np.mean(x)) if len(x) else np.nan
