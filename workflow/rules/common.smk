@@ -181,13 +181,14 @@ def twin_reports():
     if config["source"] != "twin":
         return []
     return ["reports/tables/twin_vs_real.md", "reports/tables/perception_accuracy.md",
-            "reports/tables/curation_accuracy.md", "reports/tables/uncertainty_oracle.md"]
+            "reports/tables/curation_accuracy.md", "reports/tables/uncertainty_oracle.md",
+            "reports/tables/twin_keypoints.md"]
 
 
 # Report tables by stage, each shown as a page in the HTML report (workflow/rules/report.smk).
 TWIN_ONLY = config["source"] == "twin"  # the twin's truth is what those tables measure against
 REPORT_TABLES = {
-    "twin": ["twin_vs_real"] if TWIN_ONLY else [],
+    "twin": ["twin_vs_real", "twin_keypoints"] if TWIN_ONLY else [],
     "perception": ["sync", *(["perception_accuracy"] if TWIN_ONLY else [])],
     "curation": ["curation", *(["curation_accuracy"] if TWIN_ONLY else [])],
     "learning": ["cv_results", "strike_error", "strike_error_by_frame"],

@@ -125,9 +125,31 @@ rule twin_openpose:
         seed=config["seed"],
         session="{session}",
         cam="{cam}",
+        keypoint_errors=TWIN["keypoint_errors"],
         code=code("twin_openpose"),
     log:
         "logs/twin_openpose/{session}_{cam}.log",
+    conda:
+        CONDA_ENV
+    script:
+        STAGE_SCRIPT
+
+
+rule report_twin_keypoints:
+    input:
+        rig="raw/twin_truth/rig.json",
+        people=expand("raw/twin_truth/{session}/people.parquet", session=sessions()),
+        openpose=expand("raw/sessions/{session}/openpose/{cam}", session=sessions(), cam=cameras()),
+    output:
+        md="reports/tables/twin_keypoints.md",
+        csv="reports/tables/twin_keypoints.csv",
+    params:
+        sessions=sessions(),
+        cams=cameras(),
+        keypoint_errors=TWIN["keypoint_errors"],
+        code=code("report_twin_keypoints"),
+    log:
+        "logs/report_twin_keypoints.log",
     conda:
         CONDA_ENV
     script:
