@@ -5,6 +5,7 @@ a YAML alias bomb printed 312 MB of error, unsafe tags were blamed on tab indent
 import copy
 import math
 import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -186,6 +187,20 @@ def test_unsafe_tags_are_named(tmp_path, tag):
     message = str(err.value).replace("tag:yaml.org,2002:", "!!")  # PyYAML's long form of !!
     assert f"evil.yaml, line 2: could not determine a constructor for the tag '{tag}" in message
     assert "tab" not in message
+
+
+def test_snakemake_refuses_an_unsafe_tag_without_running_it(tmp_path):
+    """Snakemake parses --configfile before any of the project's code runs and blames tab indentation (its
+    own message, upstream): the payload never runs, nothing is written, and the project's check names it."""
+    path = tmp_path / "evil.yaml"
+    path.write_text(f"seed: 1\ntwin: !!python/object/apply:os.system ['touch {tmp_path}/ran']\n")
+    cmd = [*SNAKEMAKE, "-n", "--snakefile", str(ROOT / "Snakefile"), "--configfile", str(path)]
+    proc = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True)
+    assert proc.returncode != 0 and "not valid JSON or YAML" in proc.stdout + proc.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["evil.yaml"]
+    check = subprocess.run([sys.executable, "-m", "pingpong.common.config", str(path), "--root", str(ROOT)],
+                           capture_output=True, text=True)
+    assert check.returncode == 1 and "evil.yaml, line 2: could not determine a constructor" in check.stdout
 
 
 def test_unreadable_and_non_mapping_files_are_refused(tmp_path):
