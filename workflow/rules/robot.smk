@@ -9,13 +9,20 @@ ROBOT = config["robot"]
 # the controllers a real robot could run
 SCENE_CONTROLLERS = controller_names(with_uncertainty=ROBOT["estimator"] is not None)
 ROBOT_CONTROLLERS = controller_names(with_uncertainty=ROBOT["estimator"] is not None, with_oracle=TWIN_ONLY)
-ROBOT_SETTINGS = {k: ROBOT[k] for k in ("accelerations", "timing", "timings", "servo_fit", "alpha_grid",
-                                        "confidence_quantiles", "max_flight_s")}
+if ROBOT["regime"] not in ROBOT["regimes"]:
+    raise ValueError(f"config robot.regime '{ROBOT['regime']}' is not one of robot.regimes {sorted(ROBOT['regimes'])}")
+# the configured regime (pingpong.robot.regimes); a calibrated one reads its calibration artifact
+REGIME = ROBOT["regimes"][ROBOT["regime"]]
+REGIME_CALIBRATION = [f"processed/robot/regime_{ROBOT['regime']}.json"] if REGIME.get("calibrated") else []
+ROBOT_SETTINGS = {"regime_name": ROBOT["regime"], "regime": REGIME, "seed": config["seed"],
+                  **{k: ROBOT[k] for k in ("alpha_grid", "confidence_quantiles", "max_flight_s")}}
+# the ablation's timing axis: the timings of these regimes
+ABLATION_TIMINGS = ("paper", "fine")
+if missing := sorted(set(ABLATION_TIMINGS) - set(ROBOT["regimes"])):
+    raise ValueError(f"config robot.regimes lacks {missing}: the robot ablation's timing axis")
 # the ball as visual servoing sees it: the causal inputs' measurements (flights.py); with zero-phase inputs,
 # the filtered ball the hits are judged on
 SEEN_BALLS = expand("interim/causal/{session}_ball.parquet", session=sessions()) if INPUTS == "causal" else []
-if ROBOT["timing"] not in ROBOT["timings"]:
-    raise ValueError(f"config robot.timing '{ROBOT['timing']}' is not one of robot.timings {sorted(ROBOT['timings'])}")
 
 
 rule simulate_robot:
@@ -24,6 +31,8 @@ rule simulate_robot:
         predictions="processed/predictions.parquet",
         balls=expand("interim/filtered/{session}_ball.parquet", session=sessions()),
         seen_balls=SEEN_BALLS,
+        calibration=REGIME_CALIBRATION,
+        servo_ball="processed/robot/servo_ball.json",
         # the robot's description: read from these inputs, so an edit to either reruns the rule
         limits="config/robot/limits.yaml",
         urdf="config/robot/iiwa14_ridgeback.urdf",
@@ -71,9 +80,10 @@ rule report_robot:
         seed=config["seed"],
         n_bootstrap=ROBOT["n_bootstrap"],
         limit_samples=ROBOT["limit_samples"],
-        accelerations=ROBOT["accelerations"],
-        setting=(f"accelerations {ROBOT['accelerations']}, timing {ROBOT['timing']} {ROBOT['timings'][ROBOT['timing']]}, "
-                 f"servo fit {ROBOT['servo_fit']}, inputs {INPUTS}"),
+        dynamics=REGIME["dynamics"],
+        setting=(f"regime {ROBOT['regime']}: dynamics {REGIME['dynamics']}, timing {REGIME['timing']}, "
+                 f"sensing {'calibrated' if REGIME.get('calibrated') else REGIME['sensing']}, "
+                 f"servo fit {'calibrated' if REGIME.get('calibrated') else REGIME['servo_fit']}, inputs {INPUTS}"),
         code=code("report_robot"),
     log:
         "logs/report_robot.log",
@@ -90,6 +100,8 @@ rule robot_scene:
         balls=expand("interim/filtered/{session}_ball.parquet", session=sessions()),
         seen_balls=SEEN_BALLS,
         uncertainty=[f"processed/uncertainty/{ROBOT['estimator']}.parquet"] if ROBOT["estimator"] else [],
+        calibration=REGIME_CALIBRATION,
+        servo_ball="processed/robot/servo_ball.json",
         sims=expand("processed/sim/{controller}.parquet", controller=SCENE_CONTROLLERS),
         choices=expand("processed/sim/{controller}.json", controller=SCENE_CONTROLLERS),
         limits="config/robot/limits.yaml",
@@ -121,6 +133,9 @@ rule robot_ablation:
         predictions="processed/predictions.parquet",
         balls=expand("interim/filtered/{session}_ball.parquet", session=sessions()),
         causal_balls=expand("interim/causal/{session}_ball.parquet", session=sessions()),
+        real="data/realdata/mpi_ball_gun",
+        calibration=REGIME_CALIBRATION,
+        servo_ball="processed/robot/servo_ball.json",
         limits="config/robot/limits.yaml",
         urdf="config/robot/iiwa14_ridgeback.urdf",
     output:
@@ -131,6 +146,7 @@ rule robot_ablation:
     params:
         sessions=sessions(),
         settings=ROBOT_SETTINGS,
+        timings={name: ROBOT["regimes"][name]["timing"] for name in ABLATION_TIMINGS},
         inputs=INPUTS,
         other_inputs=OTHER_INPUTS,
         other_final=OTHER_FINAL,
@@ -164,3 +180,21 @@ rule oracle_uncertainty:
         CONDA_ENV
     script:
         STAGE_SCRIPT
+
+
+# The visual servo's ball model: drag and bounce fitted on half the real ball-gun flights, the lift
+# published (pingpong.robot.servo_ball); the other half measures its error (servo_accuracy.md).
+rule fit_servo_ball:
+    input:
+        real="data/realdata/mpi_ball_gun",
+    output:
+        ball="processed/robot/servo_ball.json",
+    params:
+        code=code("fit_servo_ball"),
+    log:
+        "logs/fit_servo_ball.log",
+    conda:
+        CONDA_ENV
+    script:
+        STAGE_SCRIPT
+

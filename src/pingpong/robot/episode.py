@@ -8,8 +8,10 @@ at ControlParams.dt. Goals, each usable `latency_frames` after it was computed:
   - visual servoing: a servo fit (servo.SERVO_FITS, `servo_fit`) of the ball positions seen at frames
     0..f, for f = servo_start_frame, + servo_period_frames, ..., moved on with speed share alpha_servo.
     A fit that gives no estimate is a stated state: the robot keeps its last goal, and the episode
-    counts those updates (servo_no_estimate).
-Two timings are named (config robot.timings):
+    counts those updates (servo_no_estimate). The servo sees the ball through the regime's sensing
+    (regimes.Sensing: noise, dropped frames, a delay of `delay_frames`: at frame f it fits frames up to
+    f - delay_frames).
+Two timings are named (config robot.regimes, paper and fine):
   - paper (the defaults here): the paper's appendix. Goals change once every 10 frames (10 Hz), the
     joints integrate theta <- theta + 0.1 s theta_dot (0.1 s control steps, which is how the paper models
     its 100 ms latency: a goal computed at t drives the robot over [t, t + 0.1 s]; no delay on top), the
@@ -32,6 +34,7 @@ steps, position) and reported.
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from typing import NamedTuple
 
 import numpy as np
@@ -39,7 +42,9 @@ import numpy as np
 from pingpong.frames import CAMERA_FPS
 from pingpong.robot.control import ControlParams, control_step
 from pingpong.robot.model import PADDLE_RADIUS, Robot, paddle_position
+from pingpong.robot.regimes import Sensing, sense
 from pingpong.robot.servo import SERVO_FITS
+from pingpong.twin.ball import BallParams
 
 FRAME_DT = 1.0 / CAMERA_FPS
 LIMIT_TOLERANCE = 1e-9  # relative, for the recorded limit checks (floating-point rounding only)
@@ -50,13 +55,15 @@ class EpisodeParams:
     alpha1: float = 0.0  # speed share on the prediction before the hit
     alpha2: float = 0.0  # speed share on the prediction after the hit, until the first servo goal
     alpha_servo: float = 1.0  # speed share on the servo's goals
-    # the paper's timing (module docstring); config robot.timings names it and the fine one
+    # the paper's timing (module docstring); config robot.regimes names it and the fine one
     anticipation_start_frame: int = -10  # the first step (frames from the hit) that may move on a prediction
     anticipation_period_frames: int = 10  # frames between the anticipation goals used
     servo_start_frame: int = 10
     servo_period_frames: int = 10
     latency_frames: int = 0  # frames between computing a goal and moving on it
     servo_fit: str = "model"  # servo.SERVO_FITS
+    servo_ball: BallParams | None = None  # the model fit's ball (None: servo.MODEL_BALL)
+    sensing: Sensing = field(default_factory=Sensing)  # the ball as the servo sees it
     hit_radius: float = PADDLE_RADIUS  # m
     control: ControlParams = field(default_factory=lambda: ControlParams(dt=0.1))
 
@@ -110,11 +117,15 @@ def goal_schedule(ball_times: np.ndarray, ball_positions: np.ndarray, t_end: flo
         goals += list(strike_xz[used])
     first_servo, no_estimate = np.inf, 0
     fit = SERVO_FITS[params.servo_fit]
+    if params.servo_fit == "model" and params.servo_ball is not None:
+        fit = partial(fit, params=params.servo_ball)
     last_frame = int(np.floor(min(t_end, ball_times[-1]) / FRAME_DT + 1e-9))
     frame_times = FRAME_DT * np.arange(last_frame + 1)
     seen = np.column_stack([np.interp(frame_times, ball_times, ball_positions[:, k]) for k in range(3)])
+    seen = sense(frame_times, seen, params.sensing)
+    delay = params.sensing.delay_frames
     for f in range(params.servo_start_frame, last_frame + 1, params.servo_period_frames):
-        estimate = fit(frame_times[:f + 1], seen[:f + 1], params.control.strike_y)
+        estimate = fit(frame_times[:f + 1 - delay], seen[:f + 1 - delay], params.control.strike_y)
         if estimate.status != "ok":
             no_estimate += 1
             continue

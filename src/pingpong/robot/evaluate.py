@@ -6,7 +6,7 @@ The anticipation goal is (predicted strike x, anticipation_z): the models predic
 plane only, so the height is a fixed guess (the training hits' median strike height, simulate_robot).
 """
 
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -27,7 +27,9 @@ from pingpong.robot.episode import (
 )
 from pingpong.robot.flights import HitFlight, prediction_series
 from pingpong.robot.model import Robot
+from pingpong.robot.regimes import Regime, parse_regime
 from pingpong.robot.schemas import SIM
+from pingpong.twin.ball import BallParams
 
 
 @dataclass(frozen=True)
@@ -42,31 +44,38 @@ class Prediction:
 class SimSettings:
     episode: EpisodeParams = field(default_factory=EpisodeParams)
     anticipation_z: float = 0.15  # m, height of the anticipation goals
+    # goal schedules by (flight, prediction) object: the servo fits cost most of an episode, and a sweep
+    # replays the same flights under every candidate (results unchanged: the schedule is deterministic)
+    schedules: dict = field(default_factory=dict, compare=False, repr=False)
 
 
 @dataclass(frozen=True)
 class RobotSettings(Settings):
     """The robot rules' settings (config robot.*; the schema says what each means)."""
 
-    accelerations: str  # limits.yaml's acceleration set (model.ACCELERATION_SETS)
-    timing: str  # the name of the timing in `timings`
-    timings: dict  # name -> control_dt_s, latency_frames, anticipation_start_frame, ... (episode.py)
-    servo_fit: str
+    regime_name: str  # the configured regime (config robot.regime)
+    regime: dict  # its config robot.regimes entry (regimes.parse_regime)
+    seed: int  # of the sensing's draws (config seed)
     alpha_grid: list[float]
     confidence_quantiles: list[float]
     max_flight_s: float
 
+    def resolve(self, calibration: dict | None = None) -> Regime:
+        """The configured Regime (a calibrated one with its calibration artifact's knobs)."""
+        return parse_regime(self.regime_name, self.regime, self.seed, calibration)
 
-def episode_params(settings: RobotSettings) -> EpisodeParams:
-    """EpisodeParams of the settings' named timing and servo fit."""
-    timing = dict(settings.timings[settings.timing])
+
+def episode_params(regime: Regime, servo_ball: BallParams | None = None) -> EpisodeParams:
+    """EpisodeParams of a regime's timing, sensing and servo fit (servo_ball: the model fit's ball)."""
+    timing = asdict(regime.timing)
     dt = timing.pop("control_dt_s")
-    return EpisodeParams(**timing, servo_fit=settings.servo_fit, control=ControlParams(dt=dt))
+    return EpisodeParams(**timing, servo_fit=regime.servo_fit, servo_ball=servo_ball, sensing=regime.sensing,
+                         control=ControlParams(dt=dt))
 
 
-def sim_settings(settings: RobotSettings, anticipation_z: float) -> SimSettings:
-    """SimSettings from the robot settings (simulate_robot and robot_scene share it)."""
-    return SimSettings(episode_params(settings), anticipation_z=float(anticipation_z))
+def sim_settings(regime: Regime, anticipation_z: float, servo_ball: BallParams | None = None) -> SimSettings:
+    """SimSettings of a regime (simulate_robot, robot_scene and the regime map share it)."""
+    return SimSettings(episode_params(regime, servo_ball), anticipation_z=float(anticipation_z))
 
 
 def confidence_ramp(uncertainty: np.ndarray, u_full: float, u_zero: float) -> np.ndarray:
@@ -116,7 +125,12 @@ def simulate_hit(robot: Robot, flight: HitFlight, prediction: Prediction, contro
     t_end = t_strike if np.isfinite(t_strike) else flight.times[-1]
     times = episode_times(t_end, params)
     seen = (flight.seen_times, flight.seen_positions)
-    schedule = goal_schedule(*seen, t_end, goals, params)
+    cached = settings.schedules.get((id(flight), id(prediction)))
+    if cached is not None and cached[0] is flight and cached[1] is prediction:
+        schedule = cached[2]
+    else:
+        schedule = goal_schedule(*seen, t_end, goals, params)
+        settings.schedules[id(flight), id(prediction)] = (flight, prediction, schedule)
     first_servo = schedule.first_servo
     alpha = step_alphas(times, first_servo, prediction, controller, params)
     out = run_episode(robot, flight.times, flight.positions, goals, params, alpha=alpha, seen=seen,

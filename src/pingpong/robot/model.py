@@ -5,7 +5,7 @@ the velocity vector has the same layout. The paddle frame's origin is the disc c
 the disc normal; "facing the opponent" means that normal points along +y.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -70,6 +70,20 @@ def load_robot(urdf_path: Path, limits_path: Path, accelerations: str = "table6"
     return Robot(model, model.createData(), model.getFrameId("paddle"), model.getFrameId("flange"), names,
                  limits["q_min"], limits["q_max"], limits["v_max"], limits["a_max"], limits["tau_max"],
                  limits["home"], str(urdf_path))
+
+
+def with_dynamics(robot: Robot, base_acceleration: float, base_speed: float) -> Robot:
+    """The robot with its base joints' acceleration (m/s^2) and speed (m/s) replaced (a regime's dynamics;
+    the arm's come from the limits file's acceleration set)."""
+    a_max, v_max = robot.a_max.copy(), robot.v_max.copy()
+    a_max[:N_BASE], v_max[:N_BASE] = base_acceleration, base_speed
+    return replace(robot, a_max=a_max, v_max=v_max)
+
+
+def regime_robot(urdf_path: Path, limits_path: Path, dynamics) -> Robot:
+    """load_robot with a regime's dynamics (regimes.Dynamics): its arm acceleration set and base limits."""
+    robot = load_robot(urdf_path, limits_path, dynamics.arm_accelerations)
+    return with_dynamics(robot, dynamics.base_acceleration_mps2, dynamics.base_speed_mps)
 
 
 def frame_pose(robot: Robot, q: np.ndarray, frame: int | None = None) -> tuple[np.ndarray, np.ndarray]:

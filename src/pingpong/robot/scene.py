@@ -53,9 +53,11 @@ from pingpong.frames import (
 )
 from pingpong.io.mcap_io import SceneWriter
 from pingpong.robot.controllers import Controller
-from pingpong.robot.evaluate import Prediction, RobotSettings, SimSettings, sim_settings, simulate_hit
+from pingpong.robot.evaluate import Prediction, SimSettings, sim_settings, simulate_hit
 from pingpong.robot.flights import HitFlight, prediction_series
 from pingpong.robot.model import PADDLE_RADIUS, Robot
+from pingpong.robot.regimes import Regime
+from pingpong.twin.ball import BallParams
 
 FRAME_ID = "table"
 TOPICS = ("/table", "/ball", "/prediction", "/robot", "/opponent", "/tf")
@@ -173,11 +175,11 @@ def episode_scene(robot: Robot, hit, camera_ns: np.ndarray, flight: HitFlight,
 
 def controller_scenes(robot: Robot, hits: pd.DataFrame, camera_ns: dict[str, np.ndarray], flights: list,
                       predictions: list[Prediction], labels: list[np.ndarray], choice: dict,
-                      settings: RobotSettings) -> list[SceneEpisode]:
+                      regime: Regime, servo_ball: BallParams | None = None) -> list[SceneEpisode]:
     """episode_scene of every row of `hits` under the controller of a processed/sim/{controller}.json
-    (choice); camera_ns: each session's frame times; settings: the rule's robot settings."""
+    (choice); camera_ns: each session's frame times; regime, servo_ball: as simulate_robot ran it."""
     controller = Controller.from_choice(choice)
-    sim = sim_settings(settings, choice["anticipation_z_m"])
+    sim = sim_settings(regime, choice["anticipation_z_m"], servo_ball)
     return [episode_scene(robot, hit, camera_ns[hit.session], flights[k], predictions[k], labels[k],
                           controller, sim) for k, hit in enumerate(hits.itertuples(index=False))]
 

@@ -15,9 +15,11 @@ Two fits, by name in SERVO_FITS:
   height comes down through the table height after the last pre-bounce point (BOUNCE_SLACK before
   it at most); a rising crossing, as of a ball hit from below the table's height, is none. On
   drag-slowed flights the y-quadratic can turn back before the strike line: status "no_crossing".
-- "model" (the default, DEFAULT_SERVO_FIT): the twin's own ball model (pingpong.twin.ball: drag,
-  saturating Magnus, Nakashima table bounce with restitution and friction) fitted by Gauss-Newton to the
-  points of the current flight segment (pre-bounce, or post-bounce once three are seen), then flown
+- "model" (the default, DEFAULT_SERVO_FIT): a ball model of the twin's form (pingpong.twin.ball: drag,
+  saturating Magnus, Nakashima table bounce with restitution and friction) with its own coefficients
+  (`params`; the rules pass the servo's ball of servo_ball.py, fitted on real flights, so the servo never
+  shares the twin's coefficients; MODEL_BALL, the twin's nominal, is the default) fitted by Gauss-Newton
+  to the points of the current flight segment (pre-bounce, or post-bounce once three are seen), then flown
   forward with simulate_flight, bounce included, to the strike line. The unknowns are the state at the
   segment's last point: position, velocity, spin and the ball's drag relative to the model's. The
   Magnus force shows the spin across v; the part along v only shows as v turns, so a prior holds it:

@@ -5,7 +5,8 @@ from pingpong.common.artifacts import read_json, read_table
 from pingpong.common.seeding import rng_for
 from pingpong.reports.robot import limits_table, robot_table
 from pingpong.reports.tables import write_report_table
-from pingpong.robot.model import ACCELERATION_SETS, load_robot, read_limits, worst_case_accelerations
+from pingpong.robot.model import ACCELERATION_SETS, read_limits, regime_robot, worst_case_accelerations
+from pingpong.robot.regimes import Dynamics
 from pingpong.robot.schemas import CHOICE, SIM
 
 CAPTION = """The simulated KUKA iiwa 14 on its Ridgeback base against every test hit's measured flight
@@ -20,8 +21,9 @@ for the same controller and region (223 test hits of its lab). Setting: {setting
 
 LIMITS_CAPTION = """Joint limits of the simulated robot (config/robot/limits.yaml; sources there): positions,
 velocities (base m, m/s, m/s^2; arm rad, rad/s, rad/s^2), the accelerations the controller uses (the set
-config robot.accelerations names: {used}) beside both sets (table6: the paper's Table 6; drake: Drake's
-iiwa14 description; base: the paper's 15 m/s^2 in both) and the torque limits. derived_*: the acceleration
+the configured regime's arm set: {used}; the base's from the regime's dynamics) beside both sets (table6:
+the paper's Table 6; drake: Drake's iiwa14 description; base: the paper's 15 m/s^2 in both) and the torque
+limits. derived_*: the acceleration
 each arm joint alone can reach within the torque limits against gravity and Coriolis forces, at {n}
 states sampled uniformly within the position and velocity limits (pingpong.robot.model.
 worst_case_accelerations): simple = (tau_max_i - |b_i|) / M_ii, coupled = min_j (tau_max_j - |b_j|) /
@@ -49,9 +51,10 @@ def main(ctx):
     caption = CAPTION.format(n_boot=p["n_bootstrap"], controllers="; ".join(describe(c) for c in choices),
                              setting=p["setting"])
     write_report_table(table, o.md, o.csv, "Simulated robot (Tables 2-4)", caption)
-    robot = load_robot(i.urdf, i.limits, p["accelerations"])
+    dynamics = Dynamics(**p["dynamics"])
+    robot = regime_robot(i.urdf, i.limits, dynamics)
     derived = worst_case_accelerations(robot, rng_for(p["seed"], "robot_limits"), p["limit_samples"])
     sets = {name: read_limits(i.limits, name)["a_max"] for name in ACCELERATION_SETS}
     write_report_table(limits_table(robot, derived, sets), o.limits_md, o.limits_csv,
                        "Robot joint limits (Table 6)",
-                       LIMITS_CAPTION.format(n=p["limit_samples"], used=p["accelerations"]))
+                       LIMITS_CAPTION.format(n=p["limit_samples"], used=dynamics.arm_accelerations))

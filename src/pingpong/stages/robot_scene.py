@@ -11,7 +11,6 @@ from pingpong.curation.schemas import DATASET
 from pingpong.learning.schemas import PREDICTIONS
 from pingpong.robot.evaluate import RobotSettings
 from pingpong.robot.flights import read_ball_tables
-from pingpong.robot.model import load_robot
 from pingpong.robot.scene import (
     check_against_sim,
     controller_scenes,
@@ -22,7 +21,7 @@ from pingpong.robot.scene import (
 )
 from pingpong.robot.scene_figure import plot_scenes
 from pingpong.robot.schemas import CHOICE, SIM
-from pingpong.robot.simulate import final_predictions, hit_parts
+from pingpong.robot.simulate import final_predictions, hit_parts, regime_setup
 from pingpong.uncertainty.schemas import UNCERTAINTY
 
 log = logging.getLogger("robot_scene")
@@ -35,7 +34,8 @@ def main(ctx):
     uncertainty = read_table(i.uncertainty[0], UNCERTAINTY) if i.get("uncertainty") else None
     balls = read_ball_tables(p["sessions"], i.balls, i.seen_balls, p["seen_cutoff_hz"])
     labels = prediction_labels(predictions, hits)
-    robot = load_robot(ctx.input.urdf, ctx.input.limits, cfg.accelerations)
+    regime, robot, servo_ball = regime_setup(cfg, i.urdf, i.limits, ctx.optional_input("calibration"),
+                                             ctx.optional_input("servo_ball"))
     visuals = robot_visuals(robot)
     outputs = {Path(path).name: path for path in ctx.output.mcaps}
     # the same provenance as the Parquet artifacts', as the MCAP metadata record 'pingpong'
@@ -46,7 +46,7 @@ def main(ctx):
     for name, sim_path, choice_path in zip(p["controllers"], i.sims, i.choices, strict=True):
         _, flights, hit_preds = hit_parts(hits, balls, predictions, uncertainty, name, cfg.max_flight_s)
         episodes = controller_scenes(robot, hits, camera_ns, flights, hit_preds, labels,
-                                     read_json(choice_path, CHOICE), cfg)
+                                     read_json(choice_path, CHOICE), regime, servo_ball)
         sim = read_table(sim_path, SIM)
         for k, scene in enumerate(episodes):
             check_against_sim(scene, sim, sim_path)

@@ -9,9 +9,8 @@ from pingpong.curation.schemas import DATASET
 from pingpong.learning.schemas import PREDICTIONS
 from pingpong.robot.evaluate import RobotSettings
 from pingpong.robot.flights import read_ball_tables
-from pingpong.robot.model import load_robot
 from pingpong.robot.schemas import CHOICE, SIM
-from pingpong.robot.simulate import final_predictions, simulate_controller
+from pingpong.robot.simulate import final_predictions, regime_setup, simulate_controller
 from pingpong.uncertainty.schemas import UNCERTAINTY
 
 log = logging.getLogger("simulate_robot")
@@ -22,10 +21,12 @@ def main(ctx):
     dataset = read_table(i.dataset, DATASET).drop(columns=["x"])
     uncertainty = read_table(i.uncertainty[0], UNCERTAINTY) if i.get("uncertainty") else None
     balls = read_ball_tables(p["sessions"], i.balls, i.seen_balls, p["seen_cutoff_hz"])
-    robot = load_robot(i.urdf, i.limits, p["settings"]["accelerations"])
+    cfg = RobotSettings.from_config(p["settings"])
+    regime, robot, servo_ball = regime_setup(cfg, i.urdf, i.limits, ctx.optional_input("calibration"),
+                                             ctx.optional_input("servo_ball"))
     sim, choice = simulate_controller(p["controller"], robot, dataset,
                                       final_predictions(read_table(i.predictions, PREDICTIONS)), balls,
-                                      uncertainty, RobotSettings.from_config(p["settings"]))
+                                      uncertainty, cfg, regime, servo_ball)
     log.info("controller %s on %d test hits: %d hits; limits kept in %d", choice["controller"], len(sim),
              sim["hit_ball"].sum(), sim["limits_ok"].sum())
     prov = ctx.provenance()
