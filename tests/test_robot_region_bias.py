@@ -93,5 +93,5 @@ def test_tiny_run_tables(tiny_run):
     assert {"strike_bias", "end_distance_change", "paper_effect"} <= set(bias["quantity"])
     risk = pd.read_csv(tiny_run / "reports/tables/robot_risk_control.csv")
     assert (risk["kind"] == "summary").sum() == risk["predictions"].nunique()
-    assert set(risk["predictions"]) == {"model", "shuffled"}
+    assert set(risk["predictions"]) == {"model", "mirrored"}
     assert (tiny_run / "reports/pages/robot/robot_risk_control.html").exists()

@@ -38,7 +38,7 @@ def draw_excess(rng: np.random.Generator, n: int, curve=CURVE) -> np.ndarray:
 
 def settings(**overrides) -> RiskSettings:
     values = {"epsilon": 0.1, "delta": 0.1, "family": "step", "lambdas": LAMBDAS, "bound": "binomial",
-              "testing": "fixed_sequence", "n_resplits": 20, "shuffled_control": False, **overrides}
+              "testing": "fixed_sequence", "n_resplits": 20, "stress_controls": [], **overrides}
     return RiskSettings(**values)
 
 
@@ -191,3 +191,20 @@ def test_risk_control_table_on_synthetic_misses():
     assert list(table["kind"]) == ["dataset split"] + ["re-split"] * 20 + ["summary"]
     assert table["exceeds"].iloc[-1] == table["exceeds"].iloc[1:-1].sum()
     assert (table["n_calibration"].iloc[:-1] == 41).all()
+
+
+def test_stressed_predictions():
+    """mirrored negates every strike x and keeps the uncertainties; shuffled permutes whole predictions."""
+    from pingpong.robot.evaluate import Prediction
+    from pingpong.robot.risk_control import stressed_predictions
+
+    frames = np.array([-10, 0])
+    predictions = [Prediction(frames, np.array([k, k + 0.5]), np.array([0.1 * k, 0.2])) for k in range(6)]
+    mirrored = stressed_predictions(predictions, "mirrored")
+    assert all(np.array_equal(m.strike_x, -p.strike_x) and m.uncertainty is p.uncertainty
+               for m, p in zip(mirrored, predictions, strict=True))
+    shuffled = stressed_predictions(predictions, "shuffled", np.random.default_rng(0))
+    assert sorted(id(p) for p in shuffled) == sorted(id(p) for p in predictions)
+    assert [id(p) for p in shuffled] != [id(p) for p in predictions]
+    with pytest.raises(ValueError, match="stress control"):
+        stressed_predictions(predictions, "flipped")

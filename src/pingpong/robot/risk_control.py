@@ -35,12 +35,13 @@ from scipy.stats import beta, binom
 from pingpong.common.config import Settings
 from pingpong.common.seeding import rng_for
 from pingpong.robot.controllers import CONTROLLERS, Controller
-from pingpong.robot.evaluate import SimSettings, hit_predictions, simulate_hits, used_predictions
+from pingpong.robot.evaluate import Prediction, SimSettings, hit_predictions, simulate_hits, used_predictions
 from pingpong.robot.flights import hit_flights
 
 NAME = "risk_controlled"
 FAMILIES = ("step", "uniform")
 BOUNDS = ("binomial", "hoeffding_bentkus")
+STRESS_CONTROLS = ("mirrored", "shuffled")
 TESTINGS = ("fixed_sequence", "bonferroni")
 
 
@@ -55,7 +56,7 @@ class RiskSettings(Settings):
     bound: str
     testing: str
     n_resplits: int
-    shuffled_control: bool
+    stress_controls: list[str]
 
 
 def check_lambdas(lambdas) -> np.ndarray:
@@ -249,24 +250,35 @@ def family_misses(robot, hits: pd.DataFrame, flights: list, predictions: list, c
                             .to_numpy(bool) for c in columns])
 
 
+def stressed_predictions(predictions: list[Prediction], control: str,
+                         rng: np.random.Generator | None = None) -> list[Prediction]:
+    """The predictions of a stress control, each keeping its uncertainty: mirrored = strike x -> -x (a
+    confidently wrong model that sends the robot the wrong way, the paper's failure made systematic);
+    shuffled = every hit given another hit's predictions (drawn by rng: predictions that say nothing)."""
+    if control == "mirrored":
+        return [Prediction(p.frames, -p.strike_x, p.uncertainty) for p in predictions]
+    if control == "shuffled":
+        return [predictions[k] for k in rng.permutation(len(predictions))]
+    raise ValueError(f"unknown stress control '{control}'; expected one of {STRESS_CONTROLS}")
+
+
 def pooled_misses(robot, dataset: pd.DataFrame, balls: tuple, predictions: pd.DataFrame,
                   uncertainty: pd.DataFrame | None, risk: RiskSettings, settings: SimSettings,
-                  max_flight_s: float, shuffle: np.random.Generator | None = None
+                  max_flight_s: float, control: str | None = None, rng: np.random.Generator | None = None
                   ) -> tuple[pd.DataFrame, np.ndarray]:
     """(the calibration and test hits of a DATASET table, their misses (n, L) under each gain rule).
 
     balls: (judged, seen) ball tables by session (flights.hit_flights); predictions: the final model's;
-    uncertainty: the configured estimator's table (None: only the uniform family). shuffle: the stress
-    control, every hit given another hit's predictions (with their uncertainties), drawn by this generator:
-    anticipation on predictions that say nothing about the ball."""
+    uncertainty: the configured estimator's table (None: only the uniform family). control: a stress
+    control of the predictions (stressed_predictions; rng draws the shuffle)."""
     if uncertainty is None and risk.family != "uniform":
         raise ValueError(f"robot.risk_control.family '{risk.family}' reads an uncertainty: configure "
                          "robot.estimator, or use the uniform family")
     hits = dataset[dataset["split"].isin(["calibration", "test"])].reset_index(drop=True)
     flights = hit_flights(hits, balls[0], max_flight_s, balls[1])
     per_hit = hit_predictions(predictions, hits, uncertainty)
-    if shuffle is not None:
-        per_hit = [per_hit[k] for k in shuffle.permutation(len(per_hit))]
+    if control is not None:
+        per_hit = stressed_predictions(per_hit, control, rng)
     reference = (None if uncertainty is None else
                  np.concatenate([used_predictions(q, settings.episode).uncertainty for q in per_hit]))
     controllers = family_controllers(risk.family, risk.lambdas, reference)
@@ -276,13 +288,13 @@ def pooled_misses(robot, dataset: pd.DataFrame, balls: tuple, predictions: pd.Da
 def risk_control_report(robot, dataset: pd.DataFrame, balls: tuple, predictions: pd.DataFrame,
                         uncertainty: pd.DataFrame | None, risk: RiskSettings, settings: SimSettings,
                         max_flight_s: float, seed: int) -> tuple[pd.DataFrame, list[str]]:
-    """(risk_control_table of the model's predictions and, with risk.shuffled_control, of the shuffled
-    stress control, a column 'predictions' saying which; the misses per lambda over all hits, as text)."""
+    """(risk_control_table of the model's predictions and of each of risk.stress_controls, a column
+    'predictions' saying which; the misses per lambda over all hits, as text)."""
     tables, sweeps = [], []
-    for kind in ("model", "shuffled") if risk.shuffled_control else ("model",):
-        shuffle = rng_for(seed, "robot_risk_control", "shuffle") if kind == "shuffled" else None
+    for kind in ("model", *risk.stress_controls):
+        control = None if kind == "model" else kind
         hits, misses = pooled_misses(robot, dataset, balls, predictions, uncertainty, risk, settings,
-                                     max_flight_s, shuffle)
+                                     max_flight_s, control, rng_for(seed, "robot_risk_control", kind))
         is_calibration = (hits["split"] == "calibration").to_numpy()
         table = risk_control_table(misses, is_calibration, risk.lambdas, risk,
                                    rng_for(seed, "robot_risk_control"))

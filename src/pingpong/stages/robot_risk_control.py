@@ -30,9 +30,10 @@ epsilon (exceeds), its Clopper-Pearson 95 % interval, and the most exceedances a
 95 % quantile of Binomial({n_resplits}, delta); bar_met: no more than that; the re-splits share hits, so the
 interval is indicative). calibration_upper_bound_pct: the bound at the chosen lambda; anticipatory_exceeds:
 the same check of basic anticipation (alpha = 1). The guarantee is on the expected miss rate; a test set's
-rate scatters around it. predictions: model = the final model's; shuffled = the stress control, each hit
-given another hit's predictions and uncertainties (seeded), where anticipation can only hurt and the
-guarantee must still hold. Misses over all {n_pool} hits per lambda: {sweep}. Regime {regime}."""
+rate scatters around it. predictions: model = the final model's; the stress controls (config
+robot.risk_control.stress_controls; each prediction keeps its uncertainty), where anticipation hurts and the
+guarantee must still hold: mirrored = strike x -> -x (the robot sent the wrong way), shuffled = each hit
+given another hit's predictions. Misses over all {n_pool} hits per lambda: {sweep}. Regime {regime}."""
 
 
 def main(ctx):
