@@ -6,7 +6,7 @@ median distance over their reported joints under MATCH_SHARE of the player's sca
 no player is a false person (the bystander, the spectator). On the players' matched detections, per
 joint: the error against the projected truth (px, as a share of the player's joints' height in the image
 and of COCO's object scale s), misses (a joint in the image the JSON leaves at 0) and left/right swaps (a
-reported joint nearer the other side's true joint, the two apart by more than SWAP_APART_SHARE of s),
+reported joint nearer the other side's true joint, both in plain view, SWAP_APART_SIGMAS apart),
 for joints in plain view and hidden ones (behind the own trunk or a nearer person) apart.
 """
 
@@ -17,6 +17,7 @@ from pingpong.frames import BODY25
 from pingpong.perception.pose2d import MIRROR
 from pingpong.twin.openpose_sim import (
     COCO_SIGMAS,
+    LIMB_SWAPS,
     KeypointErrors,
     _occluded,
     object_scale,
@@ -26,12 +27,16 @@ from pingpong.twin.openpose_sim import (
 
 PLAYERS = ("near", "far")
 MATCH_SHARE = 0.5  # a detection is a player's when its median joint distance is under this share of s
-SWAP_APART_SHARE = 0.3  # a swap is told from noise only where the two sides' true joints lie this far apart
+# A swap is told from noise only where both sides are in plain view and their true joints lie this many of
+# the joint's COCO sigmas of s apart (a detector erring as COCO's annotators then calls 0.02 % of its
+# unswapped joints swapped: 2.5 sigma, 3.5 standard deviations along the line between them).
+SWAP_APART_SIGMAS = 5.0
 # The joints of the table, left and right pooled: the COCO keypoints of the body (not the face or feet).
 JOINT_GROUPS = {"nose": ("Nose",), "shoulder": ("RShoulder", "LShoulder"), "elbow": ("RElbow", "LElbow"),
                 "wrist": ("RWrist", "LWrist"), "hip": ("RHip", "LHip"), "knee": ("RKnee", "LKnee"),
                 "ankle": ("RAnkle", "LAnkle")}
 SIDED = np.array([MIRROR[j] != j for j in range(25)])
+SWAPPED_JOINTS = np.isin(np.arange(25), [j for limb in LIMB_SWAPS for side in limb for j in side])
 # The median of the 2D error's length when its RMS is 1 (a circular Gaussian: sqrt(ln 2)).
 MEDIAN_PER_RMS = np.sqrt(np.log(2.0))
 
@@ -87,7 +92,7 @@ def camera_errors(camera: Camera, detections: np.ndarray, truth_joints: np.ndarr
     reported_any = (detections[..., 2] > 0).any(-1)
     false_frames = (reported_any & ~np.isin(who, players)).any(axis=1)
     rows = {k: [] for k in ("error", "mirror_error", "reported", "inside", "hidden", "scale", "height",
-                            "apart")}
+                            "apart", "both_clear")}
     for p in players:
         f, k = np.nonzero(who == p)
         got = detections[f, k]
@@ -98,6 +103,8 @@ def camera_errors(camera: Camera, detections: np.ndarray, truth_joints: np.ndarr
         rows["reported"].append(got[..., 2] > 0)
         rows["inside"].append(view["inside"][p, f])
         rows["hidden"].append(view["hidden"][p, f])
+        clear = view["inside"][p, f] & ~view["hidden"][p, f]
+        rows["both_clear"].append(clear & clear[:, MIRROR])
         rows["scale"].append(np.repeat(view["scale"][p, f, None], 25, 1))
         rows["height"].append(np.repeat(view["height"][p, f, None], 25, 1))
     out = {k: np.concatenate(v) for k, v in rows.items()}
@@ -106,9 +113,14 @@ def camera_errors(camera: Camera, detections: np.ndarray, truth_joints: np.ndarr
     return out
 
 
+def _apart(e: dict) -> np.ndarray:
+    """Where a swap can be told from noise: a sided joint in plain view, as its other side, the two far
+    apart in the image."""
+    return SIDED & e["both_clear"] & (e["apart"] > SWAP_APART_SIGMAS * COCO_SIGMAS * e["scale"])
+
+
 def _swapped(e: dict) -> np.ndarray:
-    apart = e["apart"] > SWAP_APART_SHARE * e["scale"]
-    return SIDED & e["reported"] & apart & (e["mirror_error"] < e["error"])
+    return _apart(e) & e["reported"] & (e["mirror_error"] < e["error"])
 
 
 def joint_rows(per_camera: list[dict], errors: KeypointErrors) -> list[dict]:
@@ -134,11 +146,21 @@ def joint_rows(per_camera: list[dict], errors: KeypointErrors) -> list[dict]:
             "median_per_height_pct": 100 * _median(e["error"][clear] / e["height"][clear]),
             "hidden_median_px": _median(e["error"][hidden]),
             "hidden_pct": 100 * _share(e["hidden"][inside]),
-            "miss_visible_pct": 100 * _share(~e["reported"][inside & ~e["hidden"]]),
+            # in plain view as its other side: a swap would trade a lost hidden joint into view
+            "miss_visible_pct": 100 * _share(~e["reported"][inside & e["both_clear"]]),
+            "expected_miss_visible_pct": 100 * errors.miss_rate,
             "miss_hidden_pct": 100 * _share(~e["reported"][inside & e["hidden"]]),
-            "swap_pct": 100 * _share(swapped[inside & e["reported"]]) if SIDED[ids[0]] else np.nan,
+            "expected_miss_hidden_pct": 100 * errors.hidden_miss,
+            "swap_pct": 100 * _share(swapped[inside & e["reported"] & _apart(e)]),
+            "expected_swap_pct": 100 * expected_swap_share(errors) if SWAPPED_JOINTS[ids[0]] else np.nan,
             "n": int(inside.sum())})
     return rows
+
+
+def expected_swap_share(errors: KeypointErrors) -> float:
+    """The share of frames a given limb joint is swapped in: swaps start at swap_rate per detection, last
+    swap_frames on average and take one of the LIMB_SWAPS limbs (overlaps neglected)."""
+    return errors.swap_rate * errors.swap_frames / len(LIMB_SWAPS)
 
 
 def camera_rows(cams: list[str], per_camera: list[dict]) -> list[dict]:
@@ -147,13 +169,12 @@ def camera_rows(cams: list[str], per_camera: list[dict]) -> list[dict]:
     rows = []
     for cam in sorted(set(cams)):
         mine = [c for name, c in zip(cams, per_camera, strict=True) if name == cam]
-        e = {k: np.concatenate([c[k] for c in mine]) for k in ("reported", "inside", "hidden", "error",
-                                                                "mirror_error", "apart", "scale")}
+        e = {k: np.concatenate([c[k] for c in mine]) for k in mine[0] if k not in ("false_frames", "frames")}
         false = np.concatenate([c["false_frames"] for c in mine])
         rows.append({"camera": cam, "frames": len(false), "false_people_frames_pct": 100 * false.mean(),
                      "miss_pct": 100 * _share(~e["reported"][e["inside"]]),
                      "hidden_pct": 100 * _share(e["hidden"][e["inside"]]),
-                     "swap_pct": 100 * _share(_swapped(e)[e["inside"] & e["reported"] & SIDED])})
+                     "swap_pct": 100 * _share(_swapped(e)[e["inside"] & e["reported"] & _apart(e)])})
     return rows
 
 

@@ -22,8 +22,12 @@ joints inside the image: the 2D error of joints in plain view (swaps left out) a
 the configured detector should make (sigma_scale x COCO's sigma x sqrt(ln 2), the median of a circular
 Gaussian error of that RMS; motion blur adds to it on fast joints), in px, and as a share of the player's
 joints' height in the image; the error of hidden joints (behind the own trunk or a nearer person); the
-share of joints hidden; misses (a joint in the image written as 0, 0, 0) in view and hidden; left/right
-swaps (a joint nearer the other side's true joint, the two sides apart by more than 0.3 s)."""
+share of joints hidden; misses (a joint in the image written as 0, 0, 0) in view (as its other side) and
+hidden; left/right swaps (a joint nearer the other side's true joint, among those in plain view as their
+other side and more than 5 COCO sigmas of s apart from it),
+each beside the configured rate (twin.keypoint_errors; a limb's swap share: swap_rate x swap_frames / 3
+limbs). Per camera: the share of frames with a false person, and of the players' joints missed, hidden
+and swapped."""
 SOURCES = """Sources. COCO's per-keypoint sigmas: the COCO keypoint evaluation
 (cocodataset.org/#keypoints-eval; pycocotools cocoeval.py: nose .026, eyes .025, ears .035, shoulders .079,
 elbows .072, wrists .062, hips .107, knees .087, ankles .089), the RMS of human annotators' 2D error as a
