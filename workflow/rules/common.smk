@@ -194,7 +194,8 @@ REPORT_TABLES = {
     "learning": ["cv_results", "strike_error", "strike_error_by_frame"],
     "uncertainty": ["uncertainty", "uncertainty_verdict", "uncertainty_by_frame", "uncertainty_path_band",
                     *(["uncertainty_oracle"] if TWIN_ONLY else [])],
-    "robot": ["robot", "robot_limits", "robot_ablation", "servo_accuracy"],
+    "robot": ["robot", "robot_limits", "robot_ablation", "servo_accuracy", "robot_region_bias",
+              *(["robot_risk_control"] if config["robot"]["estimator"] else [])],
 }
 
 

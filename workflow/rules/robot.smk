@@ -198,3 +198,63 @@ rule fit_servo_ball:
     script:
         STAGE_SCRIPT
 
+
+# The paper's left-region effect, measured on the test hits: the signed strike bias of the predictions the
+# robot moves on and the end distance with and without anticipation, by region (reports/tables/
+# robot_region_bias.md).
+rule robot_region_bias:
+    input:
+        predictions="processed/predictions.parquet",
+        servo="processed/sim/servo.parquet",
+        anticipatory="processed/sim/anticipatory.parquet",
+        calibration=REGIME_CALIBRATION,
+        servo_ball="processed/robot/servo_ball.json",
+    output:
+        md="reports/tables/robot_region_bias.md",
+        csv="reports/tables/robot_region_bias.csv",
+    params:
+        settings=ROBOT_SETTINGS,
+        seed=config["seed"],
+        n_bootstrap=ROBOT["n_bootstrap"],
+        code=code("robot_region_bias"),
+    log:
+        "logs/robot_region_bias.log",
+    conda:
+        CONDA_ENV
+    script:
+        STAGE_SCRIPT
+
+
+# Beyond the paper: anticipation with a guarantee. Each calibration and test hit under every gain rule of
+# config robot.risk_control; the gain chosen on the calibration hits so that the miss rate exceeds servo's
+# by at most epsilon with probability >= 1 - delta, checked on the test hits and on random re-splits.
+rule robot_risk_control:
+    input:
+        dataset="processed/dataset.parquet",
+        predictions="processed/predictions.parquet",
+        balls=expand("interim/filtered/{session}_ball.parquet", session=sessions()),
+        seen_balls=SEEN_BALLS,
+        calibration=REGIME_CALIBRATION,
+        servo_ball="processed/robot/servo_ball.json",
+        uncertainty=[f"processed/uncertainty/{ROBOT['estimator']}.parquet"] if ROBOT["estimator"] else [],
+        limits="config/robot/limits.yaml",
+        urdf="config/robot/iiwa14_ridgeback.urdf",
+    output:
+        md="reports/tables/robot_risk_control.md",
+        csv="reports/tables/robot_risk_control.csv",
+    params:
+        sessions=sessions(),
+        seen_cutoff_hz=CURATION["causal_cutoff_ball_hz"],
+        settings=ROBOT_SETTINGS,
+        risk_control=ROBOT["risk_control"],
+        estimator=ROBOT["estimator"],
+        seed=config["seed"],
+        code=code("robot_risk_control"),
+    log:
+        "logs/robot_risk_control.log",
+    benchmark:
+        "benchmarks/results/robot_risk_control.tsv"
+    conda:
+        CONDA_ENV
+    script:
+        STAGE_SCRIPT
