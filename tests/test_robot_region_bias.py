@@ -95,3 +95,23 @@ def test_tiny_run_tables(tiny_run):
     assert (risk["kind"] == "summary").sum() == risk["predictions"].nunique()
     assert set(risk["predictions"]) == {"model", "mirrored"}
     assert (tiny_run / "reports/pages/robot/robot_risk_control.html").exists()
+
+
+def test_rows_by_uncertainty():
+    """With an uncertainty table: each used frame's hits split at the median uncertainty; the unsure half's
+    mean predicted x and per-region bias, and the claim that unsure predictions lie right of the middle."""
+    predictions, servo, anticipatory = synthetic()
+    unsure = predictions["rally"] % 2 == 0  # half the hits (whole rallies) unsure at every frame
+    predictions.loc[unsure, "strike_x_pred"] = 0.15  # when unsure: centre-right
+    uncertainty = predictions[["session", "rally", "hit", "frames_before_hit"]].assign(
+        uncertainty=np.where(unsure, 0.5, 0.1))
+    table = region_bias_table(predictions, servo, anticipatory, EpisodeParams(), rng(), 500, uncertainty)
+    for frame in (-10, 0):
+        assert value(table, "all", "predicted_x_unsure", frame)["value"] == pytest.approx(15.0)
+        sure = predictions[~unsure & (predictions["frames_before_hit"] == -frame)]
+        assert value(table, "all", "predicted_x_sure", frame)["value"] == pytest.approx(
+            100 * sure["strike_x_pred"].mean())
+    claim = table[table["claim"].str.startswith("unsure predictions", na=False)]
+    assert claim["value"].tolist() == [1.0]
+    plain = region_bias_table(predictions, servo, anticipatory, EpisodeParams(), rng(), 100)
+    assert "predicted_x_unsure" not in set(plain["quantity"])

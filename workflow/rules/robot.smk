@@ -208,12 +208,13 @@ rule robot_region_bias:
         servo="processed/sim/servo.parquet",
         anticipatory="processed/sim/anticipatory.parquet",
         calibration=REGIME_CALIBRATION,
-        servo_ball="processed/robot/servo_ball.json",
+        uncertainty=[f"processed/uncertainty/{ROBOT['estimator']}.parquet"] if ROBOT["estimator"] else [],
     output:
         md="reports/tables/robot_region_bias.md",
         csv="reports/tables/robot_region_bias.csv",
     params:
         settings=ROBOT_SETTINGS,
+        estimator=ROBOT["estimator"],
         seed=config["seed"],
         n_bootstrap=ROBOT["n_bootstrap"],
         code=code("robot_region_bias"),

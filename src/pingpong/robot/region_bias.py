@@ -70,6 +70,28 @@ def bias_rows(predictions: pd.DataFrame, rng: np.random.Generator, n_boot: int) 
     return rows
 
 
+def uncertainty_rows(predictions: pd.DataFrame, rng: np.random.Generator, n_boot: int) -> list[dict]:
+    """Per used frame, the hits split at the median uncertainty of that frame: the mean predicted strike x
+    (cm) of the unsure and the sure half over all regions (the paper: when unsure, the model predicts
+    centre-right), and per region their signed bias. predictions: used_predictions rows with the
+    configured estimator's 'uncertainty'."""
+    rows = []
+    for frame, at_frame in reversed(list(predictions.groupby("frames_before_hit", sort=True))):
+        unsure = at_frame["uncertainty"] > at_frame["uncertainty"].median()
+        for half, part in (("unsure", at_frame[unsure]), ("sure", at_frame[~unsure])):
+            for region in REGIONS:
+                in_region = region_part(part, region)
+                quantities = [(f"strike_bias_{half}", in_region["bias_m"])]
+                if region == "all":
+                    quantities.append((f"predicted_x_{half}", in_region["strike_x_pred"]))
+                for quantity, values in quantities:
+                    mean, low, high = bootstrap_mean(100 * values.to_numpy(float), rng, n_boot)
+                    rows.append({"region": region, "quantity": quantity, "frame": -int(frame),
+                                 "n_hits": len(in_region), "value": mean, "ci95_low": low, "ci95_high": high,
+                                 "unit": "cm"})
+    return rows
+
+
 def end_distance_rows(servo: pd.DataFrame, anticipatory: pd.DataFrame, rng: np.random.Generator,
                       n_boot: int) -> list[dict]:
     """Per region: end distance (cm) of servo and of basic anticipation, their paired difference, and the
@@ -126,6 +148,10 @@ def effect_verdict(table: pd.DataFrame) -> pd.DataFrame:
     # skew), rather than a pull towards the middle (which leans left balls right and right balls left)
     overall = table[(table["region"] == "all") & (table["quantity"] == "strike_bias")]
     parts["all balls predicted towards the right (strike bias > 0 at every used frame)"] = shows(overall)
+    unsure = table[table["quantity"] == "predicted_x_unsure"]
+    if len(unsure):
+        parts["unsure predictions lie right of the middle (mean predicted x of the more uncertain half > 0 "
+              "at every used frame)"] = shows(unsure)
     n_left = int(change["n_hits"].iloc[0]) if len(change) else 0
     return pd.DataFrame({"region": "left", "quantity": "paper_effect", "frame": np.nan, "n_hits": n_left,
                          "value": [float(v) for v in parts.values()], "ci95_low": np.nan, "ci95_high": np.nan,
@@ -133,10 +159,17 @@ def effect_verdict(table: pd.DataFrame) -> pd.DataFrame:
 
 
 def region_bias_table(predictions: pd.DataFrame, servo: pd.DataFrame, anticipatory: pd.DataFrame,
-                      params: EpisodeParams, rng: np.random.Generator, n_boot: int) -> pd.DataFrame:
+                      params: EpisodeParams, rng: np.random.Generator, n_boot: int,
+                      uncertainty: pd.DataFrame | None = None) -> pd.DataFrame:
     """The region-bias table: predictions (PREDICTIONS rows of the final model on the test hits), servo and
-    anticipatory (their SIM tables), params: the timing whose anticipation frames the robot uses."""
-    rows = bias_rows(used_predictions(predictions, params), rng, n_boot)
+    anticipatory (their SIM tables), params: the timing whose anticipation frames the robot uses;
+    uncertainty: the configured estimator's table (None: no rows by uncertainty)."""
+    used = used_predictions(predictions, params)
+    rows = bias_rows(used, rng, n_boot)
+    if uncertainty is not None:
+        keys = [*HIT_KEYS, "frames_before_hit"]
+        used = used.merge(uncertainty[[*keys, "uncertainty"]], on=keys, how="left", validate="one_to_one")
+        rows += uncertainty_rows(used, rng, n_boot)
     rows += end_distance_rows(servo, anticipatory, rng, n_boot)
     table = pd.DataFrame(rows)
     table["paper_value"] = paper_values(table)
