@@ -4,6 +4,7 @@ synthetic losses of known risk, the gain family's monotonicity, and the re-split
 import numpy as np
 import pytest
 from hypothesis import given
+from hypothesis import settings as settings_h
 from hypothesis import strategies as st
 
 from pingpong.robot.risk_control import (
@@ -208,3 +209,17 @@ def test_stressed_predictions():
     assert [id(p) for p in shuffled] != [id(p) for p in predictions]
     with pytest.raises(ValueError, match="stress control"):
         stressed_predictions(predictions, "flipped")
+
+
+@settings_h(max_examples=25)
+@given(st.lists(st.tuples(st.floats(0, 0.4), st.floats(0, 0.4)), min_size=2, max_size=6),
+       st.sampled_from([0.05, 0.1, 0.2]), st.integers(30, 120))
+def test_any_risk_curve_is_controlled(curve, epsilon, n):
+    """Any family of rules (random excess-miss curves over lambda, drawn by hypothesis; lambda = 0 is servo):
+    over 400 calibration sets the chosen rule's true risk exceeds epsilon in at most delta (+3 SE)."""
+    curve = [(0.0, 0.0), *curve]
+    risk = np.array([p - m for p, m in curve])
+    rng = np.random.default_rng(len(curve) * 1000 + n)
+    draws, delta = 400, 0.1
+    chosen = [select_lambda(draw_excess(rng, n, curve), epsilon, delta, "binomial")[0] for _ in range(draws)]
+    assert np.mean(risk[chosen] > epsilon) <= delta + 3 * np.sqrt(delta * (1 - delta) / draws)
