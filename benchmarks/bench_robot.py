@@ -7,6 +7,10 @@ pinv instead of the one 5 x 5 solve. Results are checked to agree before timing 
 Episodes: visual servoing alone and anticipation (alpha1 = alpha2 = 1) on simulated flights, under the
 paper's timing (0.1 s steps, the default) with each servo fit, and under the fine timing (10 ms steps,
 100 ms latency on top) and at 1 ms; the simulation must stay above 100 episodes per second on one core.
+Regimes (config robot.regimes, the schema's defaults, with the servo's ball fitted on the real flights):
+episodes per second of a first pass (servo fits included) and of a sweep's replays (goal schedules
+cached, as every tuned controller replays the calibration hits), which size the regime map
+(config robot.regime_map: ~70 replays per calibration hit and 6 first passes per test hit per cell).
 
     PYTHONPATH=src python benchmarks/bench_robot.py [--steps 3000] [--episodes 40] [--repeats 3]
 """
@@ -18,17 +22,28 @@ from pathlib import Path
 from unittest import mock
 
 import numpy as np
+import pandas as pd
 import pinocchio as pin
 from timing import best_time
 
+from pingpong.common.config import schema_defaults
 from pingpong.frames import STRIKE_Y
 from pingpong.robot import control
 from pingpong.robot.control import ControlParams, control_step
+from pingpong.robot.controllers import Controller
 from pingpong.robot.episode import EpisodeParams, run_episode
-from pingpong.robot.model import load_robot
-from pingpong.twin.ball import aim_shots, simulate_flight, stop_at_y
+from pingpong.robot.evaluate import Prediction, sim_settings, simulate_hits
+from pingpong.robot.flights import HitFlight
+from pingpong.robot.model import load_robot, regime_robot
+from pingpong.robot.regimes import parse_regime
+from pingpong.robot.servo_ball import fit_servo_ball, split_flights
+from pingpong.twin.ball import BallParams, aim_shots, simulate_flight, stop_at_y
+from pingpong.twin.realdata import load_real_flights
 
 ROBOT_DIR = Path(__file__).resolve().parents[1] / "config/robot"
+REAL_FLIGHTS = Path(__file__).resolve().parents[1] / "data/realdata/mpi_ball_gun"
+HITS = pd.DataFrame({"session": "bench", "rally": 0, "hit": np.arange(1000), "region": "centre",
+                     "strike_x": 0.0, "strike_z": 0.0})
 
 
 def full_recompute_jacobian(robot, q):
@@ -119,6 +134,8 @@ def main():
         assert all(o["limits_ok"] for o in out)
         rows.append((name, t, np.mean([o["hit"] for o in out]), np.mean([len(o["times"]) for o in out])))
 
+    regime_rows = regime_throughput(robot_dir=ROBOT_DIR, tracks=tracks, repeats=args.repeats)
+
     per_step = lambda t: t / args.steps * 1e6  # noqa: E731
     print(f"control step ({args.steps} steps, best of {args.repeats})")
     print("| variant | us / step | ratio to ours |")
@@ -132,6 +149,40 @@ def main():
     print("| --- | ---: | ---: | ---: | ---: |")
     for name, t, hit_rate, steps in rows:
         print(f"| {name} | {args.episodes / t:.1f} | {steps:.0f} | {hit_rate:.2f} | {t / rows[0][1]:.2f} |")
+    print()
+    print(f"regimes ({args.episodes} flights, best of {args.repeats}; servo ball fitted on the real flights)")
+    print("| regime | controller | episodes / s, first pass | episodes / s, sweep replay | hit rate |")
+    print("| --- | --- | ---: | ---: | ---: |")
+    for row in regime_rows:
+        name, controller, first, replay, hit_rate = row
+        print(f"| {name} | {controller} | {args.episodes / first:.1f} | {args.episodes / replay:.1f} "
+              f"| {hit_rate:.2f} |")
+
+
+def regime_throughput(robot_dir, tracks, repeats):
+    """(regime, controller, first-pass s, replay s, hit rate) for each default regime (a calibrated one with
+    example knobs: 2 cm noise, 5 frames delay) under servo and basic anticipation."""
+    defaults = schema_defaults(Path(__file__).resolve().parents[1] / "config/schema.yaml")["robot"]["regimes"]
+    ball = BallParams(**fit_servo_ball(split_flights(load_real_flights(REAL_FLIGHTS))[0])["params"])
+    example = {"sensing": {"noise_m": 0.02, "dropout": 0.0, "delay_frames": 5}, "servo_fit": "model"}
+    flights = [HitFlight(f.times, f.positions, f.times, f.positions) for f in tracks]
+    predictions = [Prediction(np.arange(-30, 1), np.full(31, f.positions[-1, 0])) for f in tracks]
+    rows = []
+    for name, spec in defaults.items():
+        regime = parse_regime(name, spec, calibration=example if spec.get("calibrated") else None)
+        robot = regime_robot(robot_dir / "iiwa14_ridgeback.urdf", robot_dir / "limits.yaml", regime.dynamics)
+        for controller in (Controller("servo"), Controller("anticipatory", 1.0, 1.0)):
+            def run(settings, robot=robot, controller=controller):
+                return simulate_hits(robot, HITS[:len(flights)], flights, predictions, controller, settings)
+
+            first = np.inf
+            for _ in range(repeats):  # a fresh cache each time: the servo fits included
+                settings = sim_settings(regime, 0.15, ball)
+                t, sim = best_time(lambda s=settings: run(s), 1)
+                first = min(first, t)
+            replay, _ = best_time(lambda s=settings: run(s), repeats)
+            rows.append((name, controller.name, first, replay, float(sim["hit_ball"].mean())))
+    return rows
 
 
 if __name__ == "__main__":

@@ -4,17 +4,20 @@ of a regime's dynamics and the servo's degraded view of the ball."""
 from dataclasses import replace
 
 import numpy as np
+import pandas as pd
 import pytest
 from workflow_util import ROBOT_LIMITS, ROBOT_URDF
 
 from pingpong.common.config import ConfigError, schema_defaults
 from pingpong.frames import STRIKE_Y
+from pingpong.robot.calibration import PAPER_TABLE2, calibrate, misfit, paper_bar, region_stats
 from pingpong.robot.controllers import Controller
 from pingpong.robot.episode import FRAME_DT, goal_schedule
 from pingpong.robot.evaluate import Prediction, SimSettings, episode_params, simulate_hit
 from pingpong.robot.flights import HitFlight
 from pingpong.robot.model import N_BASE, load_robot, regime_robot
-from pingpong.robot.regimes import Sensing, parse_regime, sense, with_sensing
+from pingpong.robot.regime_map import alpha_monotone, value_row
+from pingpong.robot.regimes import Sensing, map_cells, parse_regime, sense, with_sensing
 
 REGIMES = schema_defaults("config/schema.yaml")["robot"]["regimes"]
 
@@ -95,3 +98,93 @@ def test_servo_delay_and_noise_degrade_the_servo_goals():
                          SimSettings(episode_params(replace(with_sensing(regime, noise_m=0.05),
                                                             servo_fit="paper"))))
     assert clean["end_distance_m"] < 0.01 < noisy["end_distance_m"]
+
+
+# ---------------------------------------------------------------- calibration to the paper's Table 2
+
+def synthetic_sim(knobs: dict, n: int = 400) -> pd.DataFrame:
+    """A stand-in for servo's episodes whose hit rate and end distance follow the knobs (common random
+    numbers: the same draws for every knob setting)."""
+    rng = np.random.default_rng(0)
+    regions = np.repeat(["left", "centre", "right"], n)
+    base = np.repeat([0.05, 0.02, 0.04], n)
+    spread = base + 2.0 * knobs["noise_m"] + 0.01 * knobs["delay_frames"] + 0.05 * knobs["dropout"]
+    spread = spread * (1.5 if knobs["servo_fit"] == "paper" else 1.0)
+    distance = spread * np.abs(rng.standard_normal(3 * n))
+    return pd.DataFrame({"region": regions, "hit_ball": distance <= 0.08, "end_distance_m": distance})
+
+
+def test_the_calibration_recovers_known_knobs_from_their_synthetic_table():
+    truth = {"noise_m": 0.02, "delay_frames": 5, "dropout": 0.0, "servo_fit": "model"}
+    target_stats = region_stats(synthetic_sim(truth)).set_index("region")
+    target = {r: (target_stats.loc[r, "hit_rate"] * 1000, 1000, target_stats.loc[r, "end_distance_cm"], 1.0)
+              for r in PAPER_TABLE2}
+    grid = {"noise_m": [0.0, 0.01, 0.02, 0.04], "delay_frames": [0, 5, 10], "dropout": [0.0, 0.5],
+            "servo_fit": ["model", "paper"]}
+    knobs, table = calibrate(synthetic_sim, grid, target)
+    assert knobs == truth and len(table) == 48 and table["misfit"].min() == pytest.approx(0.0, abs=1e-9)
+
+
+def test_the_misfit_weighs_hit_rates_by_8_points_and_distances_by_the_papers_half_std():
+    stats = pd.DataFrame({"region": ["left", "centre", "right"], "n": [41, 81, 101],
+                          "hit_rate": [24 / 41 + 0.08, 60 / 81, 60 / 101],
+                          "end_distance_cm": [12.82, 6.26 + 1.93, 10.13]})
+    assert misfit(stats) == pytest.approx(2.0)
+    bar = paper_bar(stats.assign(hits=[0, 0, 0]))
+    assert bar["hit_rate_within"].tolist() == [True, True, True]  # 8 points is within
+    assert bar["end_distance_within"].tolist() == [True, True, True]
+    assert not paper_bar(stats.assign(hits=0, hit_rate=[0.3, 0.74, 0.59]))["hit_rate_within"].iloc[0]
+
+
+# ---------------------------------------------------------------- the regime map
+
+def test_map_cells_are_the_named_regimes_then_the_base_over_the_grid():
+    cells = map_cells(REGIMES, ["paper", "table2"], "fine",
+                      {"base_acceleration_mps2": [1.0, 15.0], "latency_frames": [0, 10]})
+    assert list(cells)[:2] == ["paper", "table2"] and len(cells) == 6
+    cell = cells["fine__base_acceleration_mps2=1__latency_frames=10"]
+    regime = parse_regime("x", cell)
+    assert regime.dynamics.base_acceleration_mps2 == 1.0 and regime.timing.latency_frames == 10
+    assert regime.timing.control_dt_s == REGIMES["fine"]["timing"]["control_dt_s"]
+    assert REGIMES["fine"]["dynamics"]["base_acceleration_mps2"] == 15.0  # the config is not changed
+    assert cells["table2"]["calibration_of"] == "table2" and "calibration_of" not in cells["paper"]
+    with pytest.raises(ValueError, match="no key"):
+        map_cells(REGIMES, [], "fine", {"base_jerk": [1.0]})
+
+
+def test_the_values_intervals_are_paired_over_the_same_hits():
+    rng = np.random.default_rng(0)
+    base = rng.random(200) < 0.6
+    results = {"servo": {"hit": base.tolist()}, "anticipatory": {"hit": base.tolist()},
+               "better": {"hit": (base | (rng.random(200) < 0.1)).tolist()}}
+    same = value_row(results, "servo", "anticipatory", rng, 500)
+    assert same == {"value": 0, "ci95_low": 0.0, "ci95_high": 0.0}  # paired: identical outcomes, no spread
+    better = value_row(results, "servo", "better", rng, 500)
+    assert better["value"] > 0 and 0 <= better["ci95_low"] <= better["value"] <= better["ci95_high"]
+
+
+def test_alpha_monotone_tells_an_interior_optimum():
+    rows = [{"alpha1": a1, "alpha2": a2, "hits": 10 + a1 + a2} for a1 in (0, 0.5, 1) for a2 in (0, 0.5, 1)]
+    assert alpha_monotone(rows)
+    rows = [{**r, "hits": 12 if (r["alpha1"], r["alpha2"]) == (0.5, 0.5) else 10} for r in rows]
+    assert not alpha_monotone(rows)
+
+
+def test_tiny_run_regime_tables_are_consistent(tiny_run):
+    table = pd.read_csv(tiny_run / "reports/tables/robot_regimes.csv")
+    robot = pd.read_csv(tiny_run / "reports/tables/robot.csv")
+    defaults = schema_defaults("config/schema.yaml")["robot"]["regime_map"]
+    assert len(table) == len(defaults["named"]) + np.prod([len(v) for v in defaults["axes"].values()])
+    assert (table["anticipation_value"] == table["hits_anticipatory"] - table["hits_servo"]).all()
+    assert (table["anticipation_ci95_low"] <= table["anticipation_value"]).all()
+    assert (table["anticipation_value"] <= table["anticipation_ci95_high"]).all()
+    # the configured regime's cell is Tables 2-4's run: the same hits
+    paper = table.set_index("cell").loc["paper"]
+    all_rows = robot[robot["region"] == "all"].set_index("controller")
+    for name in ("servo", "anticipatory", "uncertainty_aware"):
+        assert paper[f"hits_{name}"] == all_rows.loc[name, "hits"]
+    calibration = pd.read_csv(tiny_run / "reports/tables/robot_regime_table2.csv")
+    assert set(calibration["region"]) <= set(PAPER_TABLE2) and (calibration["regime"] == "table2").all()
+    for name in defaults["named"]:
+        assert (tiny_run / f"reports/figures/robot_alpha_surface_{name}.png").stat().st_size > 0
+    assert (tiny_run / "reports/figures/robot_regime_map.png").stat().st_size > 0

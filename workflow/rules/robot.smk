@@ -1,7 +1,10 @@
 # The simulated robot: every controller (one job each, tuned on the calibration hits where it has a sweep)
 # against the test hits' measured flights, the report (Tables 2-4 and the joint limits), and a few episodes
 # as Foxglove scenes with the simulation figure.
+import re
+
 from pingpong.robot.controllers import CONTROLLERS, controller_names
+from pingpong.robot.regimes import map_cells
 
 ROBOT = config["robot"]
 # the registered controllers; those that follow an estimator only when one is configured, the one that
@@ -16,6 +19,10 @@ REGIME = ROBOT["regimes"][ROBOT["regime"]]
 REGIME_CALIBRATION = [f"processed/robot/regime_{ROBOT['regime']}.json"] if REGIME.get("calibrated") else []
 ROBOT_SETTINGS = {"regime_name": ROBOT["regime"], "regime": REGIME, "seed": config["seed"],
                   **{k: ROBOT[k] for k in ("alpha_grid", "confidence_quantiles", "max_flight_s")}}
+# the regimes calibrated by rule calibrate_regime, and the regime map's cells (name -> regime spec)
+CALIBRATED_REGIMES = [name for name, spec in ROBOT["regimes"].items() if spec.get("calibrated")]
+MAP_CELLS = map_cells(ROBOT["regimes"], ROBOT["regime_map"]["named"], ROBOT["regime_map"]["base"],
+                      ROBOT["regime_map"]["axes"])
 # the ablation's timing axis: the timings of these regimes
 ABLATION_TIMINGS = ("paper", "fine")
 if missing := sorted(set(ABLATION_TIMINGS) - set(ROBOT["regimes"])):
@@ -199,6 +206,106 @@ rule fit_servo_ball:
         STAGE_SCRIPT
 
 
+# A calibrated regime's sensing and servo fit: fitted on the calibration hits so that servo alone reproduces
+# the paper's Table 2 (pingpong.robot.calibration); the config says which regimes are calibrated.
+rule calibrate_regime:
+    input:
+        dataset="processed/dataset.parquet",
+        balls=expand("interim/filtered/{session}_ball.parquet", session=sessions()),
+        seen_balls=SEEN_BALLS,
+        servo_ball="processed/robot/servo_ball.json",
+        limits="config/robot/limits.yaml",
+        urdf="config/robot/iiwa14_ridgeback.urdf",
+    output:
+        calibration="processed/robot/regime_{regime}.json",
+    params:
+        regime="{regime}",
+        spec=lambda wc: ROBOT["regimes"][wc.regime],
+        grid=ROBOT["calibration"],
+        seed=config["seed"],
+        sessions=sessions(),
+        seen_cutoff_hz=CURATION["causal_cutoff_ball_hz"],
+        max_flight_s=ROBOT["max_flight_s"],
+        code=code("calibrate_regime"),
+    wildcard_constraints:
+        regime="|".join(map(re.escape, CALIBRATED_REGIMES)) or "(?!)",
+    log:
+        "logs/calibrate_regime/{regime}.log",
+    benchmark:
+        "benchmarks/results/calibrate_regime/{regime}.tsv"
+    conda:
+        CONDA_ENV
+    script:
+        STAGE_SCRIPT
+
+
+# The regime map: every controller in each cell (the named regimes, the base regime over the axes' grid),
+# tuned on the calibration hits and run on the test hits (pingpong.robot.regime_map).
+rule regime_cell:
+    input:
+        dataset="processed/dataset.parquet",
+        predictions="processed/predictions.parquet",
+        balls=expand("interim/filtered/{session}_ball.parquet", session=sessions()),
+        seen_balls=SEEN_BALLS,
+        servo_ball="processed/robot/servo_ball.json",
+        uncertainty=[f"processed/uncertainty/{ROBOT['estimator']}.parquet"] if ROBOT["estimator"] else [],
+        oracle=["processed/oracle_uncertainty.parquet"] if TWIN_ONLY else [],
+        calibration=lambda wc: ([f"processed/robot/regime_{MAP_CELLS[wc.cell]['calibration_of']}.json"]
+                                if MAP_CELLS[wc.cell].get("calibrated") else []),
+        limits="config/robot/limits.yaml",
+        urdf="config/robot/iiwa14_ridgeback.urdf",
+    output:
+        cell="processed/robot/regime_map/{cell}.json",
+    params:
+        cell="{cell}",
+        spec=lambda wc: MAP_CELLS[wc.cell],
+        seed=config["seed"],
+        sessions=sessions(),
+        seen_cutoff_hz=CURATION["causal_cutoff_ball_hz"],
+        max_flight_s=ROBOT["max_flight_s"],
+        alpha_grid=ROBOT["alpha_grid"],
+        confidence_quantiles=ROBOT["confidence_quantiles"],
+        code=code("regime_cell"),
+    wildcard_constraints:
+        cell="|".join(map(re.escape, MAP_CELLS)),
+    log:
+        "logs/regime_cell/{cell}.log",
+    benchmark:
+        "benchmarks/results/regime_cell/{cell}.tsv"
+    conda:
+        CONDA_ENV
+    script:
+        STAGE_SCRIPT
+
+
+rule report_regime_map:
+    input:
+        cells=expand("processed/robot/regime_map/{cell}.json", cell=MAP_CELLS),
+        calibrations=expand("processed/robot/regime_{regime}.json",
+                            regime=[n for n in ROBOT["regime_map"]["named"] if n in CALIBRATED_REGIMES]),
+    output:
+        md="reports/tables/robot_regimes.md",
+        csv="reports/tables/robot_regimes.csv",
+        calibration_md="reports/tables/robot_regime_table2.md",
+        calibration_csv="reports/tables/robot_regime_table2.csv",
+        map=report("reports/figures/robot_regime_map.png", caption="../report/robot_regime_map.rst", category="robot"),
+        surfaces=expand("reports/figures/robot_alpha_surface_{regime}.png", regime=ROBOT["regime_map"]["named"]),
+    params:
+        cells=list(MAP_CELLS),
+        named=ROBOT["regime_map"]["named"],
+        axes=ROBOT["regime_map"]["axes"],
+        base=ROBOT["regime_map"]["base"],
+        seed=config["seed"],
+        n_bootstrap=ROBOT["n_bootstrap"],
+        code=code("report_regime_map"),
+    log:
+        "logs/report_regime_map.log",
+    conda:
+        CONDA_ENV
+    script:
+        STAGE_SCRIPT
+
+
 # The paper's left-region effect, measured on the test hits: the signed strike bias of the predictions the
 # robot moves on and the end distance with and without anticipation, by region (reports/tables/
 # robot_region_bias.md).
@@ -259,3 +366,4 @@ rule robot_risk_control:
         CONDA_ENV
     script:
         STAGE_SCRIPT
+

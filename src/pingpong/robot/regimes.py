@@ -13,6 +13,7 @@ A regime with `calibrated: true` takes its sensing and servo fit from a calibrat
 
 import zlib
 from dataclasses import dataclass, fields, replace
+from itertools import product
 
 import numpy as np
 
@@ -105,3 +106,41 @@ def sense(frame_times: np.ndarray, seen: np.ndarray, sensing: Sensing) -> np.nda
     out = seen + sensing.noise_m * noise
     out[draws < sensing.dropout] = np.nan
     return out
+
+
+# ---------------------------------------------------------------- the regime map's cells (regime_map.py)
+
+SECTIONS = {"dynamics": Dynamics, "timing": Timing, "sensing": Sensing}
+
+
+def axis_section(axis: str) -> str:
+    """The regime section (dynamics, timing, sensing) that holds a map axis's key."""
+    for section, cls in SECTIONS.items():
+        if axis in {f.name for f in fields(cls)}:
+            return section
+    raise ValueError(f"regime map axis '{axis}' is no key of a regime's dynamics, timing or sensing")
+
+
+def cell_name(base: str, point: dict) -> str:
+    """A grid cell's name, e.g. paper__base_acceleration_mps2=2__latency_frames=10 (a file name)."""
+    return "__".join([base, *(f"{axis}={value:g}" for axis, value in point.items())])
+
+
+def map_cells(regimes: dict, named: list[str], base: str, axes: dict[str, list]) -> dict[str, dict]:
+    """Cell name -> regime spec (a config robot.regimes entry): the named regimes, then the base at every
+    grid point of the axes (the first axis outermost)."""
+    for name in [*named, base]:
+        if name not in regimes:
+            raise ValueError(f"config robot.regime_map names regime '{name}', not one of {sorted(regimes)}")
+    cells = {name: regimes[name] for name in named}
+    for values in product(*axes.values()):
+        point = dict(zip(axes, values, strict=True))
+        spec = {**regimes[base], **{s: dict(regimes[base][s]) for s in SECTIONS}}
+        for axis, value in point.items():
+            section = axis_section(axis)
+            spec[section][axis] = int(value) if isinstance(regimes[base][section].get(axis), int) else value
+        cells[cell_name(base, point)] = spec | {"description": f"{base} with {point}", "grid_point": point}
+    for name, spec in cells.items():  # the regime whose calibration a calibrated cell reads
+        if spec.get("calibrated"):
+            cells[name] = spec | {"calibration_of": name if name in named else base}
+    return cells
