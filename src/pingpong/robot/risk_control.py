@@ -235,8 +235,8 @@ def risk_control_table(misses: np.ndarray, is_calibration: np.ndarray, lambdas, 
     summary_row = {"kind": "summary", "split": f"{summary['n_resplits']} re-splits",
                    "exceeds": summary.pop("exceedances"), **summary,
                    "anticipatory_exceeds": int(resplits["anticipatory_exceeds"].sum()),
-                   **{c: rows[c].mean() for c in ("lambda", "servo_miss_pct", "anticipatory_miss_pct",
-                                                   "risk_controlled_miss_pct", "excess_pct")},
+                   **{c: resplits[c].mean() for c in ("lambda", "servo_miss_pct", "anticipatory_miss_pct",
+                                                       "risk_controlled_miss_pct", "excess_pct")},
                    "epsilon_pct": 100 * settings.epsilon}
     return pd.concat([rows, pd.DataFrame([summary_row])], ignore_index=True)
 

@@ -21,19 +21,20 @@ CAPTION = """Anticipation with a guarantee (beyond the paper). The early gain al
 before the first visual-servoing goal) of each prediction is f_lambda(u) of its calibrated uncertainty u
 ({estimator}), family '{family}' (step: alpha = 1 where u <= the lambda-quantile of the pooled hits' used
 uncertainties, else 0; uniform: alpha = lambda), lambda in {lambdas}. lambda is chosen on the calibration
-hits by Learn then Test (Angelopoulos, Bates, Candes, Jordan and Lei 2021; {testing} testing, the
-'{bound}' upper bound of the excess miss rate over servo at delta = {delta}) so that the miss rate with
-anticipation is at most servo's plus epsilon = {epsilon} with probability >= 1 - delta; lambda = 0 is servo.
-Rows: the dataset's split ({n_cal} calibration, {n_test} test hits), {n_resplits} random re-splits of those
-{n_pool} hits (as many calibrating), and the summary: how often the test miss rate exceeded servo's plus
-epsilon (exceeds), its Clopper-Pearson 95 % interval, and the most exceedances a rate of delta allows (the
-95 % quantile of Binomial({n_resplits}, delta); bar_met: no more than that; the re-splits share hits, so the
-interval is indicative). calibration_upper_bound_pct: the bound at the chosen lambda; anticipatory_exceeds:
-the same check of basic anticipation (alpha = 1). The guarantee is on the expected miss rate; a test set's
-rate scatters around it. predictions: model = the final model's; the stress controls (config
-robot.risk_control.stress_controls; each prediction keeps its uncertainty), where anticipation hurts and the
-guarantee must still hold: mirrored = strike x -> -x (the robot sent the wrong way), shuffled = each hit
-given another hit's predictions. Misses over all {n_pool} hits per lambda: {sweep}. Regime {regime}."""
+hits by Learn then Test (Angelopoulos, Bates, Candes, Jordan and Lei 2021; {testing} testing, the '{bound}'
+upper bound of the excess miss rate over servo at delta = {delta}) so that the miss rate with anticipation
+is at most servo's plus epsilon = {epsilon} with probability >= 1 - delta; lambda = 0 is servo. Rows: the
+dataset's split ({n_cal} calibration, {n_test} test hits), {n_resplits} random re-splits of those {n_pool}
+hits (as many calibrating), and the summary: the re-splits' mean lambda and miss rates, how often the test
+miss rate exceeded servo's plus epsilon (exceeds), its Clopper-Pearson 95 % interval, and the most
+exceedances a rate of delta allows (the 95 % quantile of Binomial({n_resplits}, delta); bar_met: no more
+than that; the re-splits share hits, so the interval is indicative). calibration_upper_bound_pct: the bound
+at the chosen lambda; anticipatory_exceeds: the same check of basic anticipation (alpha = 1). The guarantee
+is on the expected miss rate; a test set's rate scatters around it. predictions: model = the final model's;
+the stress controls (config robot.risk_control.stress_controls; each prediction keeps its uncertainty),
+where anticipation hurts and the guarantee must still hold: mirrored = strike x -> -x (the robot sent the
+wrong way), shuffled = each hit given another hit's predictions. Misses over all {n_pool} hits per lambda:
+{sweep}. Regime {regime}."""
 
 
 def main(ctx):
