@@ -8,7 +8,9 @@ lambda it does not increase with u.
   - step: alpha = 1 where u <= the lambda-quantile of the reference uncertainties, else 0 (lambda = 0: none);
   - uniform: alpha = lambda whatever u (the control: is the uncertainty what helps?).
 The reference uncertainties are those of every pooled hit's used prediction frames (outcomes unseen):
-a function of the pool, not of the split, so every calibration/test re-split shares one family.
+a function of the pool, not of the split, so every calibration/test re-split shares one family. The
+re-splits reuse the one fitted estimator, whose own calibration saw the dataset's calibration hits: their
+uncertainties are in-sample for it wherever a re-split puts them among the test hits.
 
 The loss of a hit under lambda is its excess miss over servo, miss(lambda) - miss(servo) in {-1, 0, 1}; the
 risk R(lambda) is its mean. Learn then Test (Angelopoulos, Bates, Candes, Jordan and Lei 2021, "Learn then
