@@ -19,6 +19,7 @@ as far as a bystander at the table's corner stands from him, and a gate that onc
 person keeps following him. The tracklets carry who is who across such gaps already.
 """
 
+import warnings
 from itertools import product
 
 import numpy as np
@@ -32,6 +33,12 @@ from pingpong.perception.scene import Scene
 from pingpong.perception.triangulation import reprojection_errors, triangulate_dlt
 
 MIN_JOINTS = 3  # joints a view must share with the fit for its agreement to count
+# A view's gate grows to this share of its person's torso in the image: a detector errs in proportion to
+# the person's size (COCO's per-keypoint sigmas are shares of it; twin.keypoint_errors), so a near,
+# large person's views disagree by more pixels than a far one's. About 2.5x a shoulder's or hip's RMS
+# error at COCO's sigmas (torso ~0.65 s: 0.3 torso ~ 0.2 s against sigma 0.08-0.11 s).
+TORSO_GATE_SHARE = 0.3
+TORSO_JOINTS = ((0, 6), (3, 7))  # model joints (MODEL_JOINT_IDS order): each shoulder and its hip
 NEW_LABEL_M = 1e3  # cost of starting a subject label afresh rather than continuing one (m)
 
 
@@ -52,6 +59,13 @@ def people_arrays(table: pd.DataFrame, times: np.ndarray) -> tuple[np.ndarray, n
     return px, conf, person
 
 
+def torso_lengths(px: np.ndarray) -> np.ndarray:
+    """(...) a person's torso in the image (px): the mean of its shoulder-to-hip distances seen, from model
+    joints (..., J, 2); NaN where neither is."""
+    lengths = np.stack([np.linalg.norm(px[..., a, :] - px[..., b, :], axis=-1) for a, b in TORSO_JOINTS], -1)
+    return np.nanmean(lengths, axis=-1)
+
+
 def _median_error(errors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per point and view, the median over joints (axis 1) of finite errors (inf where none), and how many
     there were."""
@@ -66,8 +80,12 @@ def combination_fits(cameras: list[Camera], px: list[np.ndarray], conf: list[np.
     px[c] (F, P_c, J, 2), conf[c] (F, P_c, J): camera c's people (people_arrays). Returns the
     combinations (tuples of a person index or -1 per camera), and per combination and frame whether
     its views agree (K, F), its mean error over gate (K, F; inf where they do not agree) and the median
-    of its fitted joints (K, F, 3)."""
+    of its fitted joints (K, F, 3). A view's gate is its camera's gate_px, or TORSO_GATE_SHARE of its
+    person's torso in the image where that is more."""
     n_frames = len(px[0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN: a person without a torso pair
+        torso = [torso_lengths(p) for p in px]  # (F, P_c) per camera
     P = np.stack([cam.P for cam in cameras])
     undistorted = [cam.undistort_pixels(p.reshape(-1, 2)).reshape(p.shape) for cam, p in zip(cameras, px,
                                                                                             strict=True)]
@@ -89,7 +107,8 @@ def combination_fits(cameras: list[Camera], px: list[np.ndarray], conf: list[np.
             -1, n_views), weight.reshape(-1, n_views))
         errors = reprojection_errors([cameras[c] for c in views], points, sub.reshape(-1, n_views, 2))
         median, count = _median_error(errors.reshape(n, n_joints, n_views))
-        ratio = median / gate_px[views]
+        gate = [np.fmax(gate_px[c], TORSO_GATE_SHARE * torso[c][frames, combo[c]]) for c in views]
+        ratio = median / np.stack(gate, axis=1)
         ok = ((ratio <= 1) & (count >= MIN_JOINTS)).all(axis=1)
         agree[k, frames] = ok
         error[k, frames[ok]] = ratio[ok].mean(axis=1)

@@ -70,4 +70,7 @@ def pose3d_rows(pose3d: pd.DataFrame, people: pd.DataFrame, joint_ids) -> list[d
         for j in joint_ids:
             cols = [f"j{j:02d}_{a}" for a in "xyz"]
             errors.append(np.linalg.norm(est[cols].to_numpy() - true[cols].to_numpy(), axis=1))
-    return [_row("8-joint 3D error (median)", 100 * float(np.nanmedian(np.concatenate(errors))), "cm", 2.0)]
+    # the twin's keypoints err as a detector's (twin.keypoint_errors); OpenPose's multi-camera joint centres
+    # lie 30-50 mm off marker-based ones at the hip and knee (Needham et al. 2021, Sci Rep, abstract):
+    # 1.5x that upper figure (the tiny run: 5.3 cm; 1.3 cm before issue 41's detector errors)
+    return [_row("8-joint 3D error (median)", 100 * float(np.nanmedian(np.concatenate(errors))), "cm", 7.5)]
