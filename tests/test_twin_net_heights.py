@@ -121,3 +121,15 @@ def test_net_table_rows_shares_and_the_ball_gun_column():
     assert bounce["twin"] == pytest.approx(7.0) and bounce["real"] == pytest.approx(5.0)
     assert "Hodges" in table.loc[(STATISTICS["net_height"][0], "lob"), "source"]
     assert table.loc[(STATISTICS["net_speed"][0], "drive"), "published (human play)"] == NOT_FOUND
+
+
+def test_tiny_run_reports_the_net_section(tiny_run):
+    table = pd.read_csv(tiny_run / "reports/tables/twin_vs_real.csv")
+    net = table[table["section"] == "net"].set_index(["statistic", "stroke"])
+    height = net.loc[(STATISTICS["net_height"][0], "all")]
+    assert height["n"] > 0 and height["twin_p10"] <= height["twin"] <= height["twin_p90"]
+    assert height["twin_p10"] > 0  # every good shot clears the tape
+    bounce = net.loc[(STATISTICS["bounce_speed"][0], "all")]
+    assert np.isfinite(bounce[["twin", "real"]].astype(float)).all()
+    text = (tiny_run / "reports/tables/twin_vs_real.md").read_text()
+    assert "## Net-crossing height and speed at the net" in text
