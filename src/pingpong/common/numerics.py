@@ -10,7 +10,10 @@ Rapids runner (docs/performance.md, "The same results on any CPU"; `analysis/com
   (X86_V4) where the CPU has it, to AVX2 elsewhere: 1-ulp differences;
 - torch's own kernels dispatch on the CPU (ATen: AVX-512 here; MKL and oneDNN their own), and
   OpenCV's dispatched code too.
-Each alone changes artifacts of the tiny run; which, and how far they travel, is in docs/performance.md.
+OpenBLAS's core type alone, and numpy's dispatch alone, changed the tiny run's twin (its rig in the last
+bit, then its rallies: 48 hits kept against 47); ATen's and MKL's dispatch each changed trained weights.
+What stays unpinned: glibc's libm (numpy's scalar and AVX2 paths of some functions call it), so two
+machines agree bit for bit with the same venv on the same glibc.
 
 The pin: every library at the AVX2 + FMA level (Haswell, 2013; every x86-64 server and laptop CPU since
 Intel Haswell and AMD Zen has it) and at one thread of its own (parallelism comes from Snakemake's jobs;
