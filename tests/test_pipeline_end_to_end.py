@@ -124,7 +124,11 @@ def test_robot_ablation_covers_every_combination_within_the_limits(tiny_run):
     configured = table.loc[table["changed"] == "none", "controller"].tolist()
     assert configured == ["servo", "anticipatory", "perfect"]
     servo = pd.read_csv(tiny_run / "reports/tables/servo_accuracy.csv")
-    assert set(servo["fit"]) == {"paper", "model"} and set(servo["frames_after_hit"]) == {10, 15, 20}
+    on_test = servo[servo["flights"] == "test"]
+    assert set(on_test["fit"]) == {"paper", "model", "model_twin_ball"}
+    assert set(on_test["frames_after_hit"]) == {10, 15, 20} and set(servo["flights"]) == {"test", "ball_gun"}
+    # the servo's ball is fitted on half the real flights, measured on the other half
+    assert (servo.loc[servo["flights"] == "ball_gun", "n_flights"] == 53).all()
 
 
 def test_html_report_shows_every_stage_table_and_figure(tiny_run):

@@ -188,3 +188,28 @@ def test_tiny_run_regime_tables_are_consistent(tiny_run):
     for name in defaults["named"]:
         assert (tiny_run / f"reports/figures/robot_alpha_surface_{name}.png").stat().st_size > 0
     assert (tiny_run / "reports/figures/robot_regime_map.png").stat().st_size > 0
+
+
+# ---------------------------------------------------------------- the servo's ball
+
+def test_the_servo_ball_is_fitted_on_half_the_real_flights_with_the_published_lift():
+    from pingpong.robot.servo import MODEL_BALL
+    from pingpong.robot.servo_ball import (
+        PUBLISHED_LIFT,
+        fit_servo_ball,
+        real_flight_in_table_frame,
+        split_flights,
+    )
+    from pingpong.twin.realdata import load_real_flights
+
+    flights = load_real_flights("data/realdata/mpi_ball_gun")
+    fit_half, held_out = split_flights(flights)
+    assert not {f["name"] for f in fit_half} & {f["name"] for f in held_out}
+    assert len(fit_half) + len(held_out) == len(flights)
+    params = fit_servo_ball(fit_half)["params"]
+    lift = params["magnus_coefficient"]
+    assert lift == PUBLISHED_LIFT["magnus_coefficient"] != MODEL_BALL.magnus_coefficient  # not the twin's
+    assert 0.3 < params["drag_coefficient"] < 0.7 and 0.8 < params["table_restitution"] < 1.0
+    times, positions = real_flight_in_table_frame(held_out[0])
+    assert times[0] == 0 and positions[:, 2].min() < 0.05
+    assert positions[0, 1] > 0 > STRIKE_Y > positions[-1, 1]  # towards the robot, past the strike line

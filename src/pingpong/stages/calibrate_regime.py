@@ -23,7 +23,7 @@ TARGET_FIELDS = ("hits", "total", "end_distance_mean_cm", "half_std_cm")
 def main(ctx):
     p, i = ctx.params, ctx.input
     dataset = read_table(i.dataset, DATASET).drop(columns=["x"])
-    hits = dataset[dataset["split"] == "calibration"].reset_index(drop=True)
+    hits = dataset[dataset["split"].isin(p["grid"]["splits"])].reset_index(drop=True)
     judged, seen = read_ball_tables(p["sessions"], i.balls, i.seen_balls, p["seen_cutoff_hz"])
     flights = hit_flights(hits, judged, p["max_flight_s"], seen)
     none = [Prediction(np.zeros(0, int), np.zeros(0)) for _ in range(len(hits))]  # servo follows none
@@ -41,9 +41,9 @@ def main(ctx):
 
     knobs, table = calibrate(simulate, p["grid"])
     stats = region_stats(simulate(knobs))
-    log.info("regime %s calibrated on %d hits: %s (misfit %.2f)", p["regime"], len(hits), knobs,
-             table["misfit"].min())
-    write_json({"regime": p["regime"], "n_calibration_hits": len(hits),
+    log.info("regime %s calibrated on %d %s hits: %s (misfit %.2f)", p["regime"], len(hits),
+             p["grid"]["splits"], knobs, table["misfit"].min())
+    write_json({"regime": p["regime"], "n_calibration_hits": len(hits), "splits": p["grid"]["splits"],
                 "sensing": {k: knobs[k] for k in ("noise_m", "dropout", "delay_frames")},
                 "servo_fit": knobs["servo_fit"],
                 "target": {"source": "Rahmanian et al. 2023, Table 2 (visual servoing alone)",
