@@ -183,7 +183,7 @@ def test_tiny_run_regime_tables_are_consistent(tiny_run):
     all_rows = robot[robot["region"] == "all"].set_index("controller")
     for name in ("servo", "anticipatory", "uncertainty_aware"):
         assert paper[f"hits_{name}"] == all_rows.loc[name, "hits"]
-    calibration = pd.read_csv(tiny_run / "reports/tables/robot_regime_table2.csv")
+    calibration = pd.read_csv(tiny_run / "reports/tables/robot_regime_calibration.csv")
     assert set(calibration["region"]) <= set(PAPER_TABLE2) and (calibration["regime"] == "table2").all()
     for name in defaults["named"]:
         assert (tiny_run / f"reports/figures/robot_alpha_surface_{name}.png").stat().st_size > 0

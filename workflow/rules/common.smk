@@ -195,7 +195,7 @@ REPORT_TABLES = {
     "uncertainty": ["uncertainty", "uncertainty_verdict", "uncertainty_by_frame", "uncertainty_path_band",
                     *(["uncertainty_oracle"] if TWIN_ONLY else [])],
     "robot": ["robot", "robot_limits", "robot_ablation", "servo_accuracy", "robot_region_bias",
-              "robot_regimes", "robot_regime_table2",
+              "robot_regimes", "robot_regime_calibration",
               *(["robot_risk_control"] if config["robot"]["estimator"] else [])],
 }
 

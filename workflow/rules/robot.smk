@@ -286,8 +286,8 @@ rule report_regime_map:
     output:
         md="reports/tables/robot_regimes.md",
         csv="reports/tables/robot_regimes.csv",
-        calibration_md="reports/tables/robot_regime_table2.md",
-        calibration_csv="reports/tables/robot_regime_table2.csv",
+        calibration_md="reports/tables/robot_regime_calibration.md",
+        calibration_csv="reports/tables/robot_regime_calibration.csv",
         map=report("reports/figures/robot_regime_map.png", caption="../report/robot_regime_map.rst", category="robot"),
         surfaces=expand("reports/figures/robot_alpha_surface_{regime}.png", regime=ROBOT["regime_map"]["named"]),
     params:
