@@ -20,8 +20,9 @@ Stroke speeds and spins (`STROKES`) follow high-speed-camera figures of human pl
 `pingpong.reports.twin_flights` lists the sources beside the twin's measured shot statistics): pushes
 ~3-6 m/s with backspin, blocks ~6-9 m/s with little spin, drives and loops ~9-15 m/s with 30-100+
 rev/s of topspin, smashes 14+ m/s. The ranges here are the project's choice within those figures; a
-stroke's speed is the aim's hint, and the net takes its share: off the paddle drives leave at a median
-12 m/s from hints of 14-18 m/s, loops at 9 m/s from 10-14 (sessions s00-s07 of the default seed).
+stroke's speed is the aim's hint, and the net and the arc over it (`net_height`, below) take their share:
+off the paddle drives leave at a median 11.3 m/s from hints of 14-18 m/s, loops at 6.1 m/s from 10-14
+(the default config's sessions s00-s03; 12 m/s and 9 m/s when every shot skimmed the net).
 Bounce depth (m past the net) is drawn per stroke so that most first bounces land within
 0.10-0.70 m of the net, where the paper's lab saw most of them.
 
@@ -104,8 +105,8 @@ STROKES = {
                       0.3, 1.3, 1.2, 0.8, (0.80, 1.20)),
 }
 STROKE_NAMES = tuple(STROKES)
-# Drive-heavy, as attacking players are: the good shots' speed p90 reaches 12.2-12.3 m/s with 21-27 %
-# backspin on the default seed's sessions s00-s03 and s04-s07 (0.24 drives, 0.26 pushes: 11.5-12.0 m/s).
+# Drive-heavy, as attacking players are: the good shots' speed p90 reaches 12.5 m/s with 24 % backspin on
+# the default config's sessions s00-s03 (with the net heights; 12.2-12.3 m/s, 21-27 % before them).
 # Topspin defence and lobs are answers to pressure (stroke_weights), rare on easy balls.
 BASE_MIX = {"drive": 0.32, "loop": 0.20, "sidespin": 0.14, "push": 0.20, "flick": 0.06, "block": 0.08,
             "smash": 0.0, "fish": 0.05, "lob": 0.025}
