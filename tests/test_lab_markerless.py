@@ -14,14 +14,17 @@ import warnings
 import numpy as np
 import pandas as pd
 import pytest
+import yaml
 from lab_util import write_video
 from scipy.spatial.transform import Rotation
 from workflow_util import ROOT, copy_checkout, snakemake
 
 from pingpong.common.camera import Camera
+from pingpong.common.seeding import rng_for
 from pingpong.frames import MODEL_JOINT_IDS
 from pingpong.io.calibration_import import change_world_frame, export_anipose_toml
 from pingpong.perception.calibration import load_cameras
+from pingpong.twin.openpose_sim import default_keypoint_errors, spectator_joints
 
 NAMES = {"cam0": "cam_01", "cam1": "cam_02", "cam2": "cam_03"}
 # the lab's frame: floor at z = 0 (the table top is 0.76 m above it), turned 30 deg, origin 3.2 m away
@@ -31,7 +34,9 @@ T_LAB_FROM_TABLE[:3, 3] = (3.2, -1.5, 0.76)
 BYSTANDER_CAMERA = "cam_01"
 EXTRA_FILE_CAMERA = "cam_03"
 BYSTANDER_SHIFT = (60.0, -10.0)  # px: another person's pose, beside the subjects in that camera's image
-TOLERANCE_M = 0.02
+# per-frame median joint error: the twin's keypoints err as a detector's (twin.keypoint_errors), 5 cm
+# median in 3D (Needham et al. 2021: OpenPose's 3D joint centres 30-50 mm off at the hip and knee)
+TOLERANCE_M = 0.10
 
 
 def readme_lab_section() -> str:
@@ -107,38 +112,47 @@ def lab_run(lab_root):
 
 
 def truth_in_lab(tiny_run) -> tuple[np.ndarray, np.ndarray]:
-    """The twin's people (near, far, its bystander): times (F,) and joints (F, 3 people, 8, 3), lab frame."""
+    """The twin's people (near, far, its bystander, the spectator its OpenPose sees walking behind a
+    court): times (F,) and joints (F, 4 people, 8, 3), lab frame."""
     people = pd.read_parquet(tiny_run / "raw/twin_truth/s00/people.parquet")
     times = np.sort(people["time_ns"].unique())
     cols = [f"j{j:02d}_{a}" for j in MODEL_JOINT_IDS for a in "xyz"]
     xyz = np.stack([people[people["person"] == p].set_index("time_ns").reindex(times)[cols].to_numpy()
                     for p in ("near", "far", "bystander")], axis=1).reshape(len(times), 3, -1, 3)
+    seed = yaml.safe_load((tiny_run / "config/config.yaml").read_text())["seed"]
+    spectator = spectator_joints(len(times), default_keypoint_errors().false_people_rate,
+                                 rng_for(seed, "twin_openpose_spectator", "s00"))[:, list(MODEL_JOINT_IDS)]
+    xyz = np.concatenate([xyz, spectator[:, None]], axis=1)
     return times, xyz @ T_LAB_FROM_TABLE[:3, :3].T + T_LAB_FROM_TABLE[:3, 3]
 
 
 def test_joints_match_the_truth_in_the_labs_frame(lab_run, tiny_run):
     """Each subject's joints are those of the nearest true person: per frame, the median error of every
-    joint found is within 2 cm in >= 95 % of the frames with any; no subject is ever made of the one-camera
-    bystander's views (it has no 3D truth: such a subject lies far from every true person); and both
-    players are found nearly always."""
+    joint found is within TOLERANCE_M in >= 95 % of the frames with any; no subject is made of the
+    one-camera bystander's views (it has no 3D truth: such a subject lies far from every true person;
+    under 1 % of the rows do); and both players are found nearly always."""
     root, _ = lab_run
     pose = pd.read_parquet(root / "interim/pose3d/lab01.parquet")
     times, truth = truth_in_lab(tiny_run)
     cols = [f"j{j:02d}_{a}" for j in MODEL_JOINT_IDS for a in "xyz"]
     joints = pose[cols].to_numpy().reshape(len(pose), -1, 3)  # (rows, 8, 3): a subject in a frame
-    true = truth[np.searchsorted(times, pose["time_ns"].to_numpy())]  # (rows, 3 people, 8, 3)
+    true = truth[np.searchsorted(times, pose["time_ns"].to_numpy())]  # (rows, 4 people, 8, 3)
     error = np.linalg.norm(joints[:, None] - true, axis=-1)
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN: a person absent, or a subject unseen
         nearest = np.nanargmin(np.nan_to_num(np.nanmedian(error, axis=-1), nan=np.inf), axis=1)
         joint_error = error[np.arange(len(pose)), nearest]  # (rows, 8) m, NaN where a joint is not found
         found = np.isfinite(joint_error).any(axis=1)
-        assert np.nanmedian(joint_error[found], axis=1).max() < 0.3  # the bystander never used
+        # the bystander never used: it stands beside the subjects in cam_01's every frame, so a subject made
+        # of its views would lie far from everyone in many; 0.4 % of the rows here are 2-view fits of one
+        # player's view with another's whose errors happen to agree (the twin's detector errs as COCO's
+        # sigmas say; 0.6 % with the association's fixed 12 px gate, before it grew with the torso)
+        assert (np.nanmedian(joint_error[found], axis=1) > 0.3).mean() < 0.01
         frames = pd.Series(list(joint_error[found])).groupby(pose["time_ns"].to_numpy()[found])
         per_frame = frames.apply(lambda rows: np.nanmedian(np.concatenate(rows.to_list())))
     assert (per_frame < TOLERANCE_M).mean() >= 0.95
     assert len(per_frame) >= 0.95 * len(times)
-    players = np.bincount(nearest[found], minlength=3)[:2]
+    players = np.bincount(nearest[found], minlength=4)[:2]
     assert (players >= 0.95 * len(times)).all()  # near and far, in every frame but those without people
 
 
