@@ -92,7 +92,7 @@ def camera_errors(camera: Camera, detections: np.ndarray, truth_joints: np.ndarr
     reported_any = (detections[..., 2] > 0).any(-1)
     false_frames = (reported_any & ~np.isin(who, players)).any(axis=1)
     rows = {k: [] for k in ("error", "mirror_error", "reported", "inside", "hidden", "scale", "height",
-                            "apart", "both_clear")}
+                            "apart", "both_clear", "confidence")}
     for p in players:
         f, k = np.nonzero(who == p)
         got = detections[f, k]
@@ -101,6 +101,7 @@ def camera_errors(camera: Camera, detections: np.ndarray, truth_joints: np.ndarr
         rows["mirror_error"].append(np.linalg.norm(got[..., :2] - truth_px[:, MIRROR], axis=-1))
         rows["apart"].append(np.linalg.norm(truth_px - truth_px[:, MIRROR], axis=-1))
         rows["reported"].append(got[..., 2] > 0)
+        rows["confidence"].append(got[..., 2])
         rows["inside"].append(view["inside"][p, f])
         rows["hidden"].append(view["hidden"][p, f])
         clear = view["inside"][p, f] & ~view["hidden"][p, f]
@@ -145,6 +146,9 @@ def joint_rows(per_camera: list[dict], errors: KeypointErrors) -> list[dict]:
             "median_px": _median(e["error"][clear]), "p90_px": _quantile(e["error"][clear], 0.9),
             "median_per_height_pct": 100 * _median(e["error"][clear] / e["height"][clear]),
             "hidden_median_px": _median(e["error"][hidden]),
+            "confidence_clear": _median(e["confidence"][clear]),
+            "confidence_hidden": _median(e["confidence"][hidden]),
+            "confidence_swapped": _median(e["confidence"][inside & swapped]),
             "hidden_pct": 100 * _share(e["hidden"][inside]),
             # in plain view as its other side: a swap would trade a lost hidden joint into view
             "miss_visible_pct": 100 * _share(~e["reported"][inside & e["both_clear"]]),

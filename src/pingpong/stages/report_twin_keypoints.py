@@ -22,6 +22,7 @@ joints inside the image: the 2D error of joints in plain view (swaps left out) a
 the configured detector should make (sigma_scale x COCO's sigma x sqrt(ln 2), the median of a circular
 Gaussian error of that RMS; motion blur adds to it on fast joints), in px, and as a share of the player's
 joints' height in the image; the error of hidden joints (behind the own trunk or a nearer person); the
+median confidence of reported joints in plain view, hidden and swapped; the
 share of joints hidden; misses (a joint in the image written as 0, 0, 0) in view (as its other side) and
 hidden; left/right swaps (a joint nearer the other side's true joint, among those in plain view as their
 other side and more than 5 COCO sigmas of s apart from it),
