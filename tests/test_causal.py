@@ -208,6 +208,26 @@ def test_pose_check_reference_trails_offline_uses_the_session():
     assert not np.isnan(clean_pose(pose, causal=True)[elbow[0]]).any()  # the upper arm vouches for it
 
 
+@pytest.mark.parametrize("causal", [False, True])
+def test_pose_check_tolerates_a_detectors_noise_and_still_throws_out_wrong_joints(causal):
+    """Joints with 3.5 cm of noise per axis (a detector's, as on the harder twin): a bone's length
+    scatters by several cm, past the fixed 10 cm now and then; the tolerance grows with that scatter, so
+    almost no frame is lost to noise while a joint thrown 0.6 m (onto another arm or person) still is."""
+    n = 3000
+    rng = np.random.default_rng(11)
+    pose = _pose3d(rng, n, players=("near",), thrown=0.0, nan_share=0.0)
+    pose[JOINT_XYZ] += rng.normal(0, 0.035, (n, len(JOINT_XYZ)))
+    thrown = rng.choice(n, 30, replace=False)
+    wrist = JOINT_XYZ[6:9]
+    pose.loc[thrown, wrist] += [0.6, 0, 0]
+    gone = np.isnan(clean_pose(pose, causal=causal)[wrist[0]]).to_numpy()
+    others = np.setdiff1d(np.arange(n), thrown)
+    assert gone[thrown[thrown > 100]].all()  # causal: a reference needs a few frames first
+    assert gone[others].mean() < 0.01
+    forearm = np.linalg.norm(pose[wrist].to_numpy() - pose[JOINT_XYZ[3:6]].to_numpy(), axis=1)
+    assert (np.abs(forearm - np.median(forearm))[others] > 0.10).mean() > 0.02  # noise past a fixed 10 cm
+
+
 # --- session tables
 
 

@@ -128,14 +128,22 @@ def lowpass(signal, cutoff_hz: float, fs_hz: float = 100.0, order: int = 4) -> n
 
 # pairs of model joints (positions in MODEL_JOINT_IDS) whose distance is a rigid bone or the torso's width
 
+# A bone's length is wrong beyond this many robust standard deviations of its own scatter. With a detector's
+# errors (the twin's COCO-sigma keypoints, issue 41) bone lengths scatter by a median 2.6-3.9 cm and the fixed
+# 10 cm tolerance alone removed 8.8 % of a tiny run's wrist frames (a bone's noise, not a wrong joint);
+# a joint thrown onto the other arm or person is off by the shoulders' width (~0.35 m) or more.
+BONE_NOISE_SIGMAS = 4.0
+
 
 def clean_pose(pose3d: pd.DataFrame, max_bone_error: float = 0.10, causal: bool = False,
                window_s: float = 10.0) -> pd.DataFrame:
     """pose3d with bad joints removed (coordinates NaN, views 0): a joint is bad on a frame where every
     bone (frames.MODEL_BONES) it belongs to is longer or shorter than that bone's median over the
-    player's session by more than max_bone_error (m), e.g. a joint triangulated onto the other arm or
-    another person. On the raw pose, before the low-pass, which would smear one such frame over its
-    neighbours.
+    player's session by more than its tolerance, e.g. a joint triangulated onto the other arm or another
+    person. The tolerance is max_bone_error (m) or BONE_NOISE_SIGMAS robust standard deviations (1.4826 x
+    the median absolute deviation) of that bone's length, whichever is larger, so that a detector's
+    ordinary noise is not read as a wrong joint. On the raw pose, before the low-pass, which would smear
+    one such frame over its neighbours.
 
     causal: the median is the bone's over the player's frames of the last window_s s up to and with
     the frame itself, so no decision depends on a later frame (as live). It checks little on a player's
@@ -151,12 +159,20 @@ def clean_pose(pose3d: pd.DataFrame, max_bone_error: float = 0.10, causal: bool 
             time_ns = out.loc[rows, "time_ns"].to_numpy(np.int64)
             order = np.argsort(time_ns, kind="stable")
             reference = np.empty_like(lengths)
-            reference[order] = pd.DataFrame(lengths[order], index=pd.DatetimeIndex(time_ns[order])).rolling(
-                pd.Timedelta(seconds=window_s), min_periods=1).median().to_numpy()
+            index, window = pd.DatetimeIndex(time_ns[order]), pd.Timedelta(seconds=window_s)
+            reference[order] = pd.DataFrame(lengths[order], index=index).rolling(
+                window, min_periods=1).median().to_numpy()
+            deviation = np.abs(lengths - reference)
+            spread = np.empty_like(lengths)
+            spread[order] = pd.DataFrame(deviation[order], index=index).rolling(
+                window, min_periods=1).median().to_numpy()
         else:
             reference = np.nanmedian(lengths, axis=0)
+            deviation = np.abs(lengths - reference)
+            spread = np.nanmedian(deviation, axis=0)
+        tolerance = np.fmax(max_bone_error, BONE_NOISE_SIGMAS * 1.4826 * spread)
         with np.errstate(invalid="ignore"):
-            off = np.abs(lengths - reference) > max_bone_error
+            off = deviation > tolerance
         bad = np.stack([off[:, [k for k, bone in enumerate(MODEL_BONES) if j in bone]].all(axis=1)
                         for j in range(len(MODEL_JOINT_IDS))], axis=1)  # (T, 8)
         bad_xyz = np.repeat(bad, 3, axis=1)
