@@ -21,7 +21,7 @@ import hashlib, json, sys
 if sys.argv[1] == "pin":
     from pingpong.common.numerics import pin_numerics
     pin_numerics()
-import numpy as np, scipy.linalg, threadpoolctl, torch
+import cv2, numpy as np, scipy.linalg, threadpoolctl, torch
 from numpy._core._multiarray_umath import __cpu_features__
 rng = np.random.default_rng(0)
 x, y, A = rng.normal(size=100_001) * 3, rng.normal(size=100_001), rng.normal(size=(300, 40))
@@ -34,6 +34,7 @@ print(json.dumps({
                     if i["internal_api"] == "openblas"}),
     "numpy_avx512": __cpu_features__["X86_V4"],
     "torch": torch.backends.cpu.get_cpu_capability(),
+    "opencv": [f.strip("*") for f in cv2.getCPUFeaturesLine().split() if f.startswith("*") and "?" not in f],
     "blas_values": digest(A.T @ A, x @ x, np.linalg.lstsq(A, x[:300], rcond=None)[0],
                           np.linalg.svd(A, compute_uv=False), scipy.linalg.solve(A.T @ A, A.T @ x[:300])),
     "numpy_values": digest(np.exp(x), np.log(np.abs(x)), np.arctan2(x, y)),
@@ -64,6 +65,7 @@ def test_pinned_libraries_compute_the_same_bits_as_on_other_cpus():
     here = probe("pin", {})
     assert here["blas"] == [["Haswell", 1]]
     assert not here["numpy_avx512"] and here["torch"] == "AVX2"
+    assert not any(f.startswith(("AVX512", "AVX_VNNI")) for f in here["opencv"]), here["opencv"]
     for name, env in OTHER_MACHINES.items():
         assert probe("pin", env) == here, name
 

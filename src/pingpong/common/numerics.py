@@ -42,7 +42,8 @@ KERNELS = {
     "ATEN_CPU_CAPABILITY": "avx2",  # torch's vectorised kernels (default | avx2 | avx512)
     "MKL_CBWR": "AVX2",  # MKL's conditional numerical reproducibility: one code path on any CPU
     "ONEDNN_MAX_CPU_ISA": "AVX2",  # torch's oneDNN
-    "OPENCV_CPU_DISABLE": "AVX512_SKX,AVX512_CLX,AVX512_ICL,AVX_VNNI",  # OpenCV's dispatched code
+    # OpenCV's dispatched code, by its own names (`cv2.getCPUFeaturesLine()` marks them `?`)
+    "OPENCV_CPU_DISABLE": "AVX512-SKX,AVX512-CLX,AVX512-ICL,AVX_VNNI",
 }
 REQUIRED_FLAGS = {"avx2", "fma"}
 NUMERIC_MODULES = ("numpy", "scipy", "torch", "cv2")
