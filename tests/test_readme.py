@@ -8,12 +8,9 @@ import subprocess
 import time
 from pathlib import Path
 
-import pandas as pd
 import pytest
 
-from pingpong.common.artifacts import read_table
-from pingpong.learning.schemas import PREDICTIONS
-from pingpong.reports.summary import SummaryError, summary_markdown
+from pingpong.reports.summary import SummaryError, run_tables, summary_markdown
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
@@ -47,23 +44,12 @@ def test_results_block_is_the_generated_summary():
     assert re.match(r"Results of the run of commit [0-9a-f]{7,40} ", DEFAULT_RUN.read_text())
 
 
-def tiny_tables(root: Path) -> dict:
-    tables = root / "reports/tables"
-    return dict(curation=pd.read_csv(tables / "curation.csv"),
-                predictions=read_table(root / "processed/predictions.parquet", PREDICTIONS),
-                strike_error=pd.read_csv(tables / "strike_error.csv"),
-                robot=pd.read_csv(tables / "robot.csv"),
-                verdict=pd.read_csv(tables / "uncertainty_verdict.csv"),
-                perception_accuracy=pd.read_csv(tables / "perception_accuracy.csv"),
-                curation_accuracy=pd.read_csv(tables / "curation_accuracy.csv"))
-
-
 def test_the_summary_rule_writes_the_tables_figures(tiny_run):
     """rule all wrote reports/summary.md; it is the library's summary of that run's tables and quotes them."""
     text = (tiny_run / "reports/summary.md").read_text()
     commit = re.match(r"Results of the run of commit (.*?) \(its", text).group(1)
     seed = int(re.search(r"^seed: (\d+)", (tiny_run / "config/config.yaml").read_text(), re.M).group(1))
-    tables = tiny_tables(tiny_run)
+    tables = run_tables(tiny_run)
     assert text == summary_markdown(**tables, commit=commit, seed=seed)
     curation = tables["curation"].set_index("decision")["candidates"]
     assert f"| hits kept | {curation['kept']} of {curation.sum()} candidates" in text
@@ -72,7 +58,7 @@ def test_the_summary_rule_writes_the_tables_figures(tiny_run):
 
 
 def test_a_table_without_its_columns_is_named(tiny_run):
-    tables = tiny_tables(tiny_run)
+    tables = run_tables(tiny_run)
     tables["robot"] = tables["robot"].drop(columns="hits")
     with pytest.raises(SummaryError, match=r"robot: expected columns \['hits'\]"):
         summary_markdown(**tables, commit="abc1234", seed=0)

@@ -22,6 +22,11 @@ CONTROLLERS = {  # robot.csv's controllers, in the order of the paper's Tables 2
 }
 
 
+# tables a run may lack: the twin's (a lab run has none), risk control's (no estimator configured)
+EXTRA_TABLES = ("twin_vs_real", "twin_keypoints", "robot_regimes", "robot_regime_calibration",
+                "robot_risk_control")
+
+
 class SummaryError(ValueError):
     """A report table lacks what the summary reads; the message names the table and what is missing."""
 
@@ -119,20 +124,136 @@ def uncertainty_line(verdict: pd.DataFrame) -> str:
     return line + f"; {meets} of {len(verdict)} estimators meet every bar"
 
 
+def rejections(curation: pd.DataFrame) -> str:
+    """The candidates each curation rule rejected, in the rules' order, those with any."""
+    rejected = curation[(curation["decision"] != "kept") & (curation["candidates"] > 0)]
+    return ", ".join(f"{r.decision} {r.candidates}" for r in rejected.itertuples())
+
+
+def joints_line(perception_accuracy: pd.DataFrame) -> str:
+    """The 8 model joints' median 3D error against the twin's truth, over the sessions."""
+    errors = perception_accuracy.loc[perception_accuracy["quantity"] == "8-joint 3D error (median)", "value"]
+    return f"median {errors.median():.1f} cm (sessions {errors.min():.1f} to {errors.max():.1f})"
+
+
+def twin_rows(twin_vs_real: pd.DataFrame | None, keypoints: pd.DataFrame | None) -> list[tuple]:
+    """What the twin's play and its keypoint detector look like: net-crossing heights and speeds of the
+    good shots (twin_vs_real's net section), the 2D keypoint errors and false people (twin_keypoints)."""
+    rows = []
+    if twin_vs_real is not None and (twin_vs_real["section"] == "net").any():
+        net = twin_vs_real[(twin_vs_real["section"] == "net") & (twin_vs_real["stroke"] == "all")]
+        height = net[net["statistic"].str.startswith("net-crossing height")].iloc[0]
+        high = net[net["statistic"].str.startswith("share crossing")].iloc[0]
+        speed = net[net["statistic"].str.startswith("speed at the net")].iloc[0]
+        rows.append(("twin: the good shots' height over the net",
+                     f"p10 / median / p90 {100 * height.twin_p10:.1f} / {100 * height.twin:.1f} / "
+                     f"{100 * height.twin_p90:.1f} cm, {100 * high.twin:.1f} % above 25 cm; speed at the net "
+                     f"{speed.twin:.1f} m/s (median) ({height.n:.0f} shots)", ""))
+    if keypoints is not None:
+        joints = keypoints[keypoints["table"] == "joints"]
+        px, share = joints["median_px"], joints["median_per_height_pct"]
+        false_people = keypoints.loc[keypoints["table"] == "cameras", "false_people_frames_pct"].max()
+        rows.append(("twin: 2D keypoint errors (twin_keypoints.md)",
+                     f"median {px.min():.1f} to {px.max():.1f} px by joint ({share.min():.1f} to "
+                     f"{share.max():.1f} % of the person's height); false people in up to "
+                     f"{false_people:.0f} % of a camera's frames", ""))
+    return rows
+
+
+def _interval_text(value, low, high) -> str:
+    return f"{value:+.0f} (95 % {low:+.0f} to {high:+.0f})"
+
+
+def regime_rows(regimes: pd.DataFrame) -> list[tuple[str, str, str]]:
+    """Per named regime the balls anticipation wins over servoing and uncertainty over anticipation, with
+    their paired intervals; the grid's cells summed up as where each pays (interval above zero)."""
+    rows = []
+    grid = regimes["cell"].str.contains("__")
+    for r in regimes[~grid].itertuples():
+        anticipation = _interval_text(r.anticipation_value, r.anticipation_ci95_low, r.anticipation_ci95_high)
+        uncertainty = _interval_text(r.uncertainty_value, r.uncertainty_ci95_low, r.uncertainty_ci95_high)
+        rows.append((f"robot regime {r.cell}: servoing / anticipation / perfect predictions",
+                     f"{r.hits_servo} / {r.hits_anticipatory} / {r.hits_perfect} of {r.n_test}; anticipation "
+                     f"{anticipation}, uncertainty ({r.uncertainty_controller}) {uncertainty}", ""))
+    cells = regimes[grid]
+    if len(cells):
+        pays = int((cells["anticipation_ci95_low"] > 0).sum())
+        unc = int((cells["uncertainty_ci95_low"] > 0).sum())
+        costs = int((cells["uncertainty_ci95_high"] < 0).sum())
+        monotone = int((~cells["alpha_monotone"].astype(bool)).sum())
+        rows.append(("robot regime map (robot_regimes.md)",
+                     f"over {len(cells)} cells: anticipation pays in {pays}, uncertainty pays in {unc} and "
+                     f"costs balls in {costs}; the alpha sweep has an interior optimum in {monotone}", ""))
+    return rows
+
+
+def calibrated_regime_rows(calibration: pd.DataFrame) -> list[tuple[str, str, str]]:
+    """Servoing alone in each regime calibrated to the paper's Table 2, by region, beside the paper's."""
+    rows = []
+    for regime, table in calibration.groupby("regime", sort=False):
+        parts = [f"{r.region} {r.hit_pct:.0f} % (paper {r.paper_hit_pct:.0f} %), "
+                 f"{r.end_distance_mean_cm:.1f} cm (paper {r.paper_end_distance_cm:.1f})"
+                 for r in table.itertuples()]
+        rows.append((f"robot regime {regime}: servoing by region on the test hits", "; ".join(parts), ""))
+    return rows
+
+
+def risk_control_line(risk: pd.DataFrame) -> str:
+    """How often the risk-controlled anticipation's test miss rate exceeded servoing's plus epsilon over the
+    re-splits, beside how often delta allows, with the mean chosen lambda and miss rates."""
+    model = risk[risk["predictions"] == "model"]
+    summary = model[model["kind"] == "summary"].iloc[0]
+    resplits = model[model["kind"] == "re-split"]
+    miss = resplits[["risk_controlled_miss_pct", "servo_miss_pct", "anticipatory_miss_pct"]].mean()
+    return (f"test miss rate over servoing's + {summary.epsilon_pct:.0f} points in {summary.exceeds:.0f} of "
+            f"{summary.n_resplits:.0f} re-splits (at most {summary.allowed_exceedances:.0f} allowed); mean "
+            f"lambda {resplits['lambda'].mean():.2f}, misses {miss.iloc[0]:.1f} % against servoing's "
+            f"{miss.iloc[1]:.1f} % and basic anticipation's {miss.iloc[2]:.1f} %")
+
+
+def run_tables(root) -> dict:
+    """summary_markdown's tables (but commit and seed) as a finished run in folder `root` wrote them: the
+    generator of docs/results/ and the tests read a run this way; the rule reads its inputs."""
+    from pathlib import Path
+
+    from pingpong.common.artifacts import read_table
+    from pingpong.learning.schemas import PREDICTIONS
+
+    tables = Path(root) / "reports/tables"
+    out = {name: pd.read_csv(tables / f"{table}.csv") for name, table in (
+        ("curation", "curation"), ("strike_error", "strike_error"), ("robot", "robot"),
+        ("verdict", "uncertainty_verdict"))}
+    out["predictions"] = read_table(Path(root) / "processed/predictions.parquet", PREDICTIONS)
+    for name in ("perception_accuracy", "curation_accuracy"):
+        if (tables / f"{name}.csv").is_file():
+            out[name] = pd.read_csv(tables / f"{name}.csv")
+    out["extra"] = {name: pd.read_csv(tables / f"{name}.csv") for name in EXTRA_TABLES
+                    if (tables / f"{name}.csv").is_file()}
+    return out
+
+
 def summary_markdown(curation: pd.DataFrame, predictions: pd.DataFrame, strike_error: pd.DataFrame,
                      robot: pd.DataFrame, verdict: pd.DataFrame, commit: str, seed: int,
                      perception_accuracy: pd.DataFrame | None = None,
-                     curation_accuracy: pd.DataFrame | None = None, n_resamples: int = 2000) -> str:
-    """The results table of a run (Markdown), from its report tables; `commit` names the code that ran."""
+                     curation_accuracy: pd.DataFrame | None = None, n_resamples: int = 2000,
+                     extra: dict[str, pd.DataFrame] | None = None) -> str:
+    """The results table of a run (Markdown), from its report tables; `commit` names the code that ran.
+    `extra`: the tables a run may lack (twin_vs_real, twin_keypoints, robot_regimes,
+    robot_regime_calibration, robot_risk_control), by name."""
+    extra = extra or {}
     _require(curation, "curation", ["decision", "candidates"])
     _require(strike_error, "strike_error", ["model", "frames_before_hit", "all"])
     kept = int(curation.loc[curation["decision"] == "kept", "candidates"].sum())
     splits = split_counts(predictions)
     rows = [("hits kept", f"{kept} of {int(curation['candidates'].sum())} candidates ("
-             + ", ".join(f"{splits.get(s, 0)} {s}" for s in ("train", "calibration", "test")) + ")", "")]
+             + ", ".join(f"{splits.get(s, 0)} {s}" for s in ("train", "calibration", "test"))
+             + f"); rejected: {rejections(curation) or 'none'}", "")]
+    rows += twin_rows(extra.get("twin_vs_real"), extra.get("twin_keypoints"))
     for name, table in (("perception", perception_accuracy), ("curation", curation_accuracy)):
         if table is not None:
             rows.append((f"{name} against the twin's truth", checks_line(table, name), ""))
+    if perception_accuracy is not None:
+        rows.append(("3D joints against the twin's truth", joints_line(perception_accuracy), ""))
     t1 = table1(predictions, seed, n_resamples).set_index("quantity")
     for frame in TABLE1_FRAMES:
         r = t1.loc[FRAME_LABELS[frame]]
@@ -147,6 +268,13 @@ def summary_markdown(curation: pd.DataFrame, predictions: pd.DataFrame, strike_e
                  f"{baselines.get('ball_only', np.nan):.1f} / {baselines.get('mean', np.nan):.1f} cm", ""))
     rows += robot_rows(robot)
     rows.append(("uncertainty (uncertainty_verdict.md)", uncertainty_line(verdict), ""))
+    if "robot_regimes" in extra:
+        rows += regime_rows(extra["robot_regimes"])
+    if "robot_regime_calibration" in extra:
+        rows += calibrated_regime_rows(extra["robot_regime_calibration"])
+    if "robot_risk_control" in extra:
+        rows.append(("robot: risk-controlled anticipation (robot_risk_control.md)",
+                     risk_control_line(extra["robot_risk_control"]), ""))
     lines = [f"Results of the run of commit {commit} (its `reports/tables/`; 95 % intervals: bootstrap over "
              "test hits).", "", "| | this run | the paper |", "|---|---|---|"]
     lines += [f"| {a} | {b} | {c} |" for a, b, c in rows]

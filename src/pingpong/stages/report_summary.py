@@ -11,7 +11,7 @@ import pandas as pd
 from pingpong.common.artifacts import read_table
 from pingpong.common.atomic import write_text_atomic
 from pingpong.learning.schemas import PREDICTIONS
-from pingpong.reports.summary import summary_markdown
+from pingpong.reports.summary import EXTRA_TABLES, summary_markdown
 
 CHECKOUT = Path(__file__).resolve().parents[3]
 
@@ -33,8 +33,9 @@ def main(ctx):
     # the twin's accuracy tables, one path or none (a lab run has no truth to measure against)
     optional = {k: pd.read_csv(ctx.optional_input(k)) for k in ("perception_accuracy", "curation_accuracy")
                 if ctx.optional_input(k)}
+    extra = {k: pd.read_csv(ctx.optional_input(k)) for k in EXTRA_TABLES if ctx.optional_input(k)}
     text = summary_markdown(pd.read_csv(ctx.input.curation), read_table(ctx.input.predictions, PREDICTIONS),
                             pd.read_csv(ctx.input.strike_error), pd.read_csv(ctx.input.robot),
                             pd.read_csv(ctx.input.verdict), commit=checkout_commit(), seed=ctx.params["seed"],
-                            **optional)
+                            extra=extra, **optional)
     write_text_atomic(ctx.output.md, text)
