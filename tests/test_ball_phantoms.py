@@ -159,7 +159,10 @@ def test_bad_input_is_refused():
 
 def test_the_tiny_runs_balls_are_kept(tiny_run):
     """The tiny run's detections triangulated as the stage does, then the flight rule: almost every 3D ball
-    is kept, and nearly every one dropped is a true ball of a lone frame or a drop to the floor."""
+    in play is kept. A ball dying on the table (hopping or rolling within 5 cm of it at under 1 m/s, as
+    the harder twin's rallies often end: 0.2-0.8 m/s at z = 2-4 cm on the tiny run of 2026-12-04, hops a
+    few frames apart that no window fits) is no flight and may go; so may a lone frame or a drop to the
+    floor. What the rule loses in play is a few points beside a smash's bounce (14-19 m/s)."""
     cams, _ = load_cameras(tiny_run / "interim" / "calibration" / "cameras.json")
     dets = [read_table(tiny_run / "interim" / "detections" / "s00" / f"{c.name}.parquet", DETECTIONS)
             for c in cams]
@@ -169,9 +172,14 @@ def test_the_tiny_runs_balls_are_kept(tiny_run):
     seen = agreed["x"].notna().to_numpy()
     dropped = seen & kept["x"].isna().to_numpy()
     assert counts["in_flight"] == seen.sum() - dropped.sum()
-    assert dropped.sum() <= 0.005 * seen.sum(), counts
     ball_truth = read_table(tiny_run / "raw" / "twin_truth" / "s00" / "ball.parquet", truth.BALL)
-    true_xyz = ball_positions_at(ball_truth, agreed["time_ns"].to_numpy())
+    time_ns = agreed["time_ns"].to_numpy()
+    true_xyz = ball_positions_at(ball_truth, time_ns)
+    step_ns = 5_000_000  # the true speed by a central difference over 10 ms
+    step_m = np.subtract(*(ball_positions_at(ball_truth, time_ns + d) for d in (step_ns, -step_ns)))
+    true_speed = np.linalg.norm(step_m, axis=1) / (2 * step_ns / 1e9)
+    in_play = ~((true_speed < 1.0) & (true_xyz[:, 2] < 0.05))  # NaN (between rallies) counts: no excuse
+    assert (dropped & in_play).sum() <= 0.005 * seen.sum(), counts
     error = np.linalg.norm(kept[["x", "y", "z"]].to_numpy() - true_xyz, axis=1)
     assert np.nanmax(error) < 0.03  # what is kept is the ball
 
