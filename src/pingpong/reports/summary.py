@@ -4,11 +4,15 @@ The README's results block is this file's content for a stated commit (docs/resu
 checked by tests/test_readme.py), so every figure it quotes comes from a run's tables, never by hand.
 """
 
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 from scipy.stats import bootstrap
 
+from pingpong.common.artifacts import read_table
 from pingpong.curation.schemas import HIT_KEYS
+from pingpong.learning.schemas import PREDICTIONS
 
 TABLE1_FRAMES = (10, 1, 0)  # the paper's Table 1 (10 and 1 frames before the hit) and the hit itself
 FRAME_LABELS = {10: "10 frames before the hit", 1: "1 frame before the hit", 0: "at the hit"}
@@ -214,11 +218,6 @@ def risk_control_line(risk: pd.DataFrame) -> str:
 def run_tables(root) -> dict:
     """summary_markdown's tables (but commit and seed) as a finished run in folder `root` wrote them: the
     generator of docs/results/ and the tests read a run this way; the rule reads its inputs."""
-    from pathlib import Path
-
-    from pingpong.common.artifacts import read_table
-    from pingpong.learning.schemas import PREDICTIONS
-
     tables = Path(root) / "reports/tables"
     out = {name: pd.read_csv(tables / f"{table}.csv") for name, table in (
         ("curation", "curation"), ("strike_error", "strike_error"), ("robot", "robot"),
