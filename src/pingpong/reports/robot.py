@@ -13,6 +13,7 @@ from scipy.stats import binomtest
 
 from pingpong.curation.schemas import HIT_KEYS
 from pingpong.robot.controllers import CONTROLLERS
+from pingpong.robot.evaluate import bootstrap_hit_difference
 from pingpong.robot.model import N_BASE, Robot
 
 REGIONS = ("left", "centre", "right", "all")
@@ -48,18 +49,6 @@ def mcnemar_exact(hits_a: np.ndarray, hits_b: np.ndarray) -> float:
     a_only = int(np.sum(hits_a & ~hits_b))
     b_only = int(np.sum(~hits_a & hits_b))
     return 1.0 if a_only + b_only == 0 else float(binomtest(b_only, a_only + b_only, 0.5).pvalue)
-
-
-def bootstrap_hit_difference(hits_base: np.ndarray, hits_other: np.ndarray, rng: np.random.Generator,
-                             n_boot: int = 2000, level: float = 0.95) -> tuple[float, float]:
-    """Percentile interval of sum(other) - sum(base) over paired resamples of the hits (rows together)."""
-    diff = hits_other.astype(int) - hits_base.astype(int)
-    if len(diff) == 0:
-        return np.nan, np.nan
-    samples = diff[rng.integers(0, len(diff), size=(n_boot, len(diff)))].sum(axis=1)
-    tail = 100 * (1 - level) / 2
-    low, high = np.percentile(samples, [tail, 100 - tail])
-    return float(low), float(high)
 
 
 def _paired_comparison(base: pd.Series, sim: pd.DataFrame, name: str, base_name: str,

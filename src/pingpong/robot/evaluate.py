@@ -172,3 +172,15 @@ def hit_predictions(predictions: pd.DataFrame, hits: pd.DataFrame,
                              f"at {u_frames.tolist()}")
         out.append(Prediction(frames, x, u))
     return out
+
+
+def bootstrap_hit_difference(hits_base: np.ndarray, hits_other: np.ndarray, rng: np.random.Generator,
+                             n_boot: int = 2000, level: float = 0.95) -> tuple[float, float]:
+    """Percentile interval of sum(other) - sum(base) over paired resamples of the hits (rows together)."""
+    diff = hits_other.astype(int) - hits_base.astype(int)
+    if len(diff) == 0:
+        return np.nan, np.nan
+    samples = diff[rng.integers(0, len(diff), size=(n_boot, len(diff)))].sum(axis=1)
+    tail = 100 * (1 - level) / 2
+    low, high = np.percentile(samples, [tail, 100 - tail])
+    return float(low), float(high)

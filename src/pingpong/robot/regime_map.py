@@ -7,7 +7,7 @@ hits over alpha1 x alpha2, and over the confidence ramp's u_full x u_zero) and e
 the test hits. The value of anticipation is basic anticipation's hits minus servo's, the value of
 uncertainty the best uncertainty-following controller's (confidence-scaled on the configured estimator,
 else uncertainty-aware, by calibration hits) minus basic anticipation's, each with a paired bootstrap
-interval over the test hits (reports.robot.bootstrap_hit_difference).
+interval over the test hits (robot.evaluate.bootstrap_hit_difference).
 """
 
 import numpy as np
@@ -15,7 +15,7 @@ import pandas as pd
 
 from pingpong.robot.ablation import PERFECT, perfect_predictions
 from pingpong.robot.controllers import CONTROLLERS
-from pingpong.robot.evaluate import SimSettings, simulate_hits
+from pingpong.robot.evaluate import SimSettings, bootstrap_hit_difference, simulate_hits
 from pingpong.robot.model import Robot
 from pingpong.robot.sweep import choose_controller
 
@@ -75,7 +75,6 @@ def alpha_monotone(sweep: list[dict]) -> bool:
 
 def value_row(results: dict, base: str, other: str, rng: np.random.Generator, n_boot: int) -> dict:
     """Hits of `other` minus `base` on the same test hits, with its paired bootstrap 95 % interval."""
-    from pingpong.reports.robot import bootstrap_hit_difference  # reports import robot, not the reverse
 
     a, b = np.asarray(results[base]["hit"], bool), np.asarray(results[other]["hit"], bool)
     low, high = bootstrap_hit_difference(a, b, rng, n_boot)
