@@ -10,12 +10,21 @@ from workflow_util import ROBOT_LIMITS, ROBOT_URDF
 
 from pingpong.common.config import ConfigError, schema_defaults
 from pingpong.frames import STRIKE_Y
-from pingpong.robot.calibration import PAPER_TABLE2, calibrate, misfit, paper_bar, region_stats
+from pingpong.robot.calibration import (
+    PAPER_TABLE2,
+    bar_probability,
+    calibrate,
+    hit_rate_interval,
+    knob_grid,
+    misfit,
+    paper_bar,
+    region_stats,
+)
 from pingpong.robot.controllers import Controller
 from pingpong.robot.episode import FRAME_DT, goal_schedule
 from pingpong.robot.evaluate import Prediction, SimSettings, episode_params, simulate_hit
 from pingpong.robot.flights import HitFlight
-from pingpong.robot.model import N_BASE, load_robot, regime_robot
+from pingpong.robot.model import N_BASE, load_robot, paddle_position, regime_robot
 from pingpong.robot.regime_map import alpha_monotone, value_row
 from pingpong.robot.regimes import Sensing, map_cells, parse_regime, sense, with_sensing
 
@@ -45,6 +54,12 @@ def test_a_calibrated_regime_needs_and_takes_its_calibration():
     calibration = {"sensing": {"noise_m": 0.01, "dropout": 0.1, "delay_frames": 2}, "servo_fit": "paper"}
     regime = parse_regime("table2", REGIMES["table2"], seed=7, calibration=calibration)
     assert regime.sensing == Sensing(0.01, 0.1, 2, 7) and regime.servo_fit == "paper" and regime.calibrated
+    # no dynamics knobs: the config's dynamics
+    assert regime.dynamics == parse_regime("paper", REGIMES["paper"]).dynamics
+    calibration["dynamics"] = {"base_speed_mps": 1.4, "base_start_x_m": 0.05}
+    regime = parse_regime("table2", REGIMES["table2"], seed=7, calibration=calibration)
+    assert regime.dynamics.base_speed_mps == 1.4 and regime.dynamics.base_start_x_m == 0.05
+    assert regime.dynamics.base_acceleration_mps2 == REGIMES["table2"]["dynamics"]["base_acceleration_mps2"]
 
 
 def test_unknown_or_missing_keys_are_config_errors():
@@ -64,6 +79,15 @@ def test_the_regime_robot_has_the_regimes_base_limits_and_arm_set():
     np.testing.assert_array_equal(robot.a_max[N_BASE:], drake.a_max[N_BASE:])
     paper = regime_robot(ROBOT_URDF, ROBOT_LIMITS, parse_regime("paper", REGIMES["paper"]).dynamics)
     np.testing.assert_array_equal(paper.a_max, load_robot(ROBOT_URDF, ROBOT_LIMITS).a_max)
+    np.testing.assert_array_equal(paper.q_home, load_robot(ROBOT_URDF, ROBOT_LIMITS).q_home)
+    # where the base waits: the home's base x moves, the paddle with it, the arm's posture stays
+    moved = regime_robot(ROBOT_URDF, ROBOT_LIMITS, replace(paper_dynamics := parse_regime(
+        "paper", REGIMES["paper"]).dynamics, base_start_x_m=0.1))
+    np.testing.assert_allclose(paddle_position(moved, moved.q_home) - paddle_position(paper, paper.q_home),
+                               [0.1, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_array_equal(moved.q_home[1:], paper.q_home[1:])
+    with pytest.raises(ValueError, match="outside"):
+        regime_robot(ROBOT_URDF, ROBOT_LIMITS, replace(paper_dynamics, base_start_x_m=5.0))
 
 
 def test_sensing_is_seeded_per_flight_and_scales_the_same_draws():
@@ -134,6 +158,43 @@ def test_the_misfit_weighs_hit_rates_by_8_points_and_distances_by_the_papers_hal
     assert bar["hit_rate_within"].tolist() == [True, True, True]  # 8 points is within
     assert bar["end_distance_within"].tolist() == [True, True, True]
     assert not paper_bar(stats.assign(hits=0, hit_rate=[0.3, 0.74, 0.59]))["hit_rate_within"].iloc[0]
+
+
+def test_the_knob_grid_spans_the_knobs_it_names_sensing_fit_and_reach():
+    grid = {"noise_m": [0.0, 0.01], "servo_fit": ["paper"], "base_speed_mps": [1.1, 1.5],
+            "base_start_x_m": [0.0, 0.05, 0.1], "splits": ["train"]}
+    points = knob_grid(grid)
+    assert len(points) == 12
+    assert set(points[0]) == {"noise_m", "servo_fit", "base_speed_mps", "base_start_x_m"}
+    assert points[0] == {"noise_m": 0.0, "servo_fit": "paper", "base_speed_mps": 1.1, "base_start_x_m": 0.0}
+    assert points[-1]["base_start_x_m"] == 0.1 and points[-1]["noise_m"] == 0.01
+
+
+def test_hit_rate_intervals_are_clopper_pearson():
+    from scipy.stats import beta
+    low, high = hit_rate_interval(7, 17)
+    assert low == pytest.approx(beta.ppf(0.025, 7, 11)) and high == pytest.approx(beta.ppf(0.975, 8, 10))
+    assert hit_rate_interval(0, 10)[0] == 0.0 and hit_rate_interval(10, 10)[1] == 1.0
+    stats = pd.DataFrame({"region": ["left", "centre", "right"], "n": [17, 38, 43], "hits": [7, 27, 17],
+                          "hit_rate": [7 / 17, 27 / 38, 17 / 43], "end_distance_cm": [14.7, 5.9, 12.9]})
+    bar = paper_bar(stats).set_index("region")
+    # the default run of fb04da0: right 17/43 = 40 % (CI 25-56 %) excludes the paper's 59 %; left 7/17
+    # (18-67 %) does not
+    assert bar.loc["left", "paper_in_ci95"] and not bar.loc["right", "paper_in_ci95"]
+    assert (bar["hit_pct_ci95_low"] <= bar["hit_pct"]).all()
+    assert (bar["hit_pct"] <= bar["hit_pct_ci95_high"]).all()
+
+
+def test_the_bar_probability_is_the_binomial_chance_of_landing_within_the_points():
+    rng = np.random.default_rng(0)
+    for n, rate in [(17, 24 / 41), (38, 60 / 81), (43, 60 / 101), (400, 0.5)]:
+        draws = rng.binomial(n, rate, 200_000) / n
+        simulated = np.mean(np.abs(draws - rate) <= 0.08 + 1e-12)
+        assert bar_probability(n, rate) == pytest.approx(simulated, abs=0.005)
+    # the bounds are inclusive: 21 and 29 of 50 are 8 points from 50 %
+    from scipy.stats import binom
+    assert bar_probability(50, 0.5) == pytest.approx(binom.cdf(29, 50, 0.5) - binom.cdf(20, 50, 0.5))
+    assert bar_probability(400, 0.5) > 0.99 and bar_probability(17, 24 / 41) < 0.6
 
 
 # ---------------------------------------------------------------- the regime map
@@ -213,3 +274,31 @@ def test_the_servo_ball_is_fitted_on_half_the_real_flights_with_the_published_li
     times, positions = real_flight_in_table_frame(held_out[0])
     assert times[0] == 0 and positions[:, 2].min() < 0.05
     assert positions[0, 1] > 0 > STRIKE_Y > positions[-1, 1]  # towards the robot, past the strike line
+
+
+def test_cached_episodes_equal_fresh_ones_and_are_shared_across_equal_goals():
+    """SimSettings' episode cache: a sweep's candidates that move the robot alike run once, with the same
+    results as uncached episodes (uncertainties differ between the prediction kinds, goals do not)."""
+    from pingpong.robot.evaluate import simulate_hits
+    regime = parse_regime("fine", REGIMES["fine"])
+    robot = regime_robot(ROBOT_URDF, ROBOT_LIMITS, regime.dynamics)
+    flights = [straight_flight(x, 0.25, t) for x, t in [(0.0, 0.6), (0.5, 0.45), (-0.6, 0.7)]]
+    hits = pd.DataFrame({"session": "s", "rally": 0, "hit": [0, 1, 2], "region": ["centre", "right", "left"],
+                         "strike_x": [0.0, 0.5, -0.6], "strike_z": 0.25})
+    frames = np.arange(-30, 1)
+    plain = [Prediction(frames, np.full(31, x)) for x in (0.05, 0.5, -0.4)]
+    estimated = [Prediction(p.frames, p.strike_x, np.linspace(0.01, 0.1, 31)) for p in plain]
+    controllers = [Controller("servo"), Controller("a", 1.0, 1.0),
+                   Controller("u", 0.6, 1.0, skip_centre=True), Controller("u", 1.0, 1.0, skip_centre=True),
+                   Controller("c", 1.0, 1.0, confidence=(0.2, 0.3))]
+    shared = SimSettings(episode_params(regime))
+    for controller in controllers:
+        for preds in (estimated,) if controller.confidence else (plain, estimated):
+            cached = simulate_hits(robot, hits, flights, preds, controller, shared)
+            fresh = simulate_hits(robot, hits, flights, preds, controller,
+                                  SimSettings(episode_params(regime)))
+            pd.testing.assert_frame_equal(cached, fresh)
+    # servo, and the ramp whose u_full is above every uncertainty (alpha 1: basic anticipation), repeat
+    # others; skip_centre makes the centre hit servo's; the two kinds share their goals
+    assert len(shared.episodes) < 2 * len(controllers) * len(flights) // 2
+    assert len(shared.schedules) == len(flights)

@@ -59,11 +59,15 @@ def calibration_table(cells: list[dict]) -> pd.DataFrame:
         sim = pd.DataFrame({"region": servo["region"], "hit_ball": servo["hit"],
                             "end_distance_m": np.asarray(servo["end_distance_m"], float)})
         knobs = {k: cell["sensing"][k] for k in ("noise_m", "dropout", "delay_frames")}
+        dynamics = cell.get("dynamics", {})  # cells written before the reach knobs lack it
+        knobs |= {k: dynamics.get(k, np.nan) for k in ("base_speed_mps", "base_start_x_m")}
         frames.append(paper_bar(region_stats(sim)).assign(regime=cell["cell"], **knobs,
                                                           servo_fit=cell["servo_fit"]))
-    columns = ["regime", "region", "n", "hits", "hit_pct", "paper_hit_pct", "end_distance_mean_cm",
-               "paper_end_distance_cm", "paper_range_low_cm", "paper_range_high_cm", "hit_rate_within",
-               "end_distance_within", "noise_m", "dropout", "delay_frames", "servo_fit"]
+    columns = ["regime", "region", "n", "hits", "hit_pct", "hit_pct_ci95_low", "hit_pct_ci95_high",
+               "paper_hit_pct", "paper_in_ci95", "hit_rate_within", "bar_probability_if_calibrated",
+               "end_distance_mean_cm", "paper_end_distance_cm", "paper_range_low_cm", "paper_range_high_cm",
+               "end_distance_within", "noise_m", "dropout", "delay_frames", "servo_fit", "base_speed_mps",
+               "base_start_x_m"]
     return pd.concat(frames)[columns] if frames else pd.DataFrame(columns=columns)
 
 

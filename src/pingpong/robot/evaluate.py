@@ -44,9 +44,12 @@ class Prediction:
 class SimSettings:
     episode: EpisodeParams = field(default_factory=EpisodeParams)
     anticipation_z: float = 0.15  # m, height of the anticipation goals
-    # goal schedules by (flight, prediction) object: the servo fits cost most of an episode, and a sweep
+    # goal schedules by flight and the goals' content: the servo fits cost most of an episode, and a sweep
     # replays the same flights under every candidate (results unchanged: the schedule is deterministic)
     schedules: dict = field(default_factory=dict, compare=False, repr=False)
+    # episodes by (robot, flight, schedule, per-step alpha): many candidates of a sweep, and controllers
+    # that wait for the servo on a hit, move the robot identically (run_episode is deterministic)
+    episodes: dict = field(default_factory=dict, compare=False, repr=False)
 
 
 @dataclass(frozen=True)
@@ -125,16 +128,26 @@ def simulate_hit(robot: Robot, flight: HitFlight, prediction: Prediction, contro
     t_end = t_strike if np.isfinite(t_strike) else flight.times[-1]
     times = episode_times(t_end, params)
     seen = (flight.seen_times, flight.seen_positions)
-    cached = settings.schedules.get((id(flight), id(prediction)))
-    if cached is not None and cached[0] is flight and cached[1] is prediction:
-        schedule = cached[2]
+    # the flight object is kept in the value, so its id cannot be reused while the entry lives
+    key = (id(flight), goals[0].tobytes(), goals[1].tobytes())
+    cached = settings.schedules.get(key)
+    if cached is not None and cached[0] is flight:
+        schedule = cached[1]
     else:
         schedule = goal_schedule(*seen, t_end, goals, params)
-        settings.schedules[id(flight), id(prediction)] = (flight, prediction, schedule)
+        settings.schedules[key] = (flight, schedule)
     first_servo = schedule.first_servo
     alpha = step_alphas(times, first_servo, prediction, controller, params)
-    out = run_episode(robot, flight.times, flight.positions, goals, params, alpha=alpha, seen=seen,
-                      schedule=schedule)
+    key = (id(robot), id(flight), schedule.times.tobytes(), schedule.goals.tobytes(), first_servo,
+           alpha.tobytes())
+    cached = settings.episodes.get(key)
+    if cached is not None and cached[0] is robot and cached[1] is flight:
+        out = dict(cached[2])
+    else:
+        out = run_episode(robot, flight.times, flight.positions, goals, params, alpha=alpha, seen=seen,
+                          schedule=schedule)
+        settings.episodes[key] = (robot, flight, out)
+        out = dict(out)
     out["anticipated"] = bool(np.any(alpha[times < first_servo - 1e-12] > 0))
     return out
 

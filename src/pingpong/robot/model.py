@@ -81,9 +81,19 @@ def with_dynamics(robot: Robot, base_acceleration: float, base_speed: float) -> 
 
 
 def regime_robot(urdf_path: Path, limits_path: Path, dynamics) -> Robot:
-    """load_robot with a regime's dynamics (regimes.Dynamics): its arm acceleration set and base limits."""
+    """load_robot with a regime's dynamics (regimes.Dynamics): its arm acceleration set, base limits and
+    where the base waits (the home posture's base x moved by base_start_x_m)."""
     robot = load_robot(urdf_path, limits_path, dynamics.arm_accelerations)
-    return with_dynamics(robot, dynamics.base_acceleration_mps2, dynamics.base_speed_mps)
+    robot = with_dynamics(robot, dynamics.base_acceleration_mps2, dynamics.base_speed_mps)
+    if dynamics.base_start_x_m == 0:
+        return robot
+    home = robot.q_home.copy()
+    x = robot.joint_names.index("base_x")
+    home[x] += dynamics.base_start_x_m
+    if not robot.q_min[x] <= home[x] <= robot.q_max[x]:
+        raise ValueError(f"base start x {home[x]} m lies outside the base's square [{robot.q_min[x]}, "
+                         f"{robot.q_max[x]}] m")
+    return replace(robot, q_home=home)
 
 
 def frame_pose(robot: Robot, q: np.ndarray, frame: int | None = None) -> tuple[np.ndarray, np.ndarray]:

@@ -7,8 +7,9 @@ A regime says what the simulated robot is and how it sees the ball:
   - sensing: the 3D ball the visual servo sees, degraded from the measured one: Gaussian noise per
     coordinate, frames dropped at random, and a delay (the servo at frame f sees frames up to f - delay);
   - servo_fit: the servo's strike estimate (servo.SERVO_FITS).
-A regime with `calibrated: true` takes its sensing and servo fit from a calibration artifact
-(calibration.py, rule calibrate_regime) instead of the config. Light on purpose (no Pinocchio).
+A regime with `calibrated: true` takes its sensing, servo fit and the calibrated dynamics knobs (base speed
+and start) from a calibration artifact (calibration.py, rule calibrate_regime) instead of the config.
+Light on purpose (no Pinocchio).
 """
 
 import zlib
@@ -25,6 +26,9 @@ class Dynamics:
     arm_accelerations: str  # limits.yaml's acceleration set (model.ACCELERATION_SETS)
     base_acceleration_mps2: float
     base_speed_mps: float
+    # where the base waits across the table (m along x from the home posture's, + towards the right
+    # region): the paper does not say where its robot waits, so a calibrated regime may fit it
+    base_start_x_m: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -73,15 +77,17 @@ def _section(cls, values: dict, where: str):
 
 def parse_regime(name: str, spec: dict, seed: int = 0, calibration: dict | None = None) -> Regime:
     """The Regime of one config robot.regimes entry; `calibration` (a calibrate_regime artifact's
-    `sensing` and `servo_fit`) replaces the config's for a calibrated regime, and must be given for one."""
+    `sensing`, `servo_fit` and `dynamics` knobs) replaces the config's for a calibrated regime, and must be
+    given for one."""
     where = f"config robot.regimes.{name}"
     sensing = {**spec.get("sensing", {}), "seed": seed}
-    servo_fit = spec["servo_fit"]
+    servo_fit, dynamics = spec["servo_fit"], spec["dynamics"]
     if spec.get("calibrated", False):
         if calibration is None:
             raise ConfigError(f"{where} is calibrated: its calibration artifact is needed")
         sensing, servo_fit = {**calibration["sensing"], "seed": seed}, calibration["servo_fit"]
-    return Regime(name, _section(Dynamics, spec["dynamics"], f"{where}.dynamics"),
+        dynamics = {**dynamics, **calibration.get("dynamics", {})}
+    return Regime(name, _section(Dynamics, dynamics, f"{where}.dynamics"),
                   _section(Timing, spec["timing"], f"{where}.timing"),
                   _section(Sensing, sensing, f"{where}.sensing"), servo_fit,
                   bool(spec.get("calibrated", False)), spec.get("description", ""))

@@ -43,6 +43,7 @@ def main(ctx):
              {name: sum(r["hit"]) for name, r in results.items()})
     write_json({"cell": p["cell"], "description": p["spec"].get("description", ""),
                 "grid_point": p["spec"].get("grid_point", {}), "sensing": regime.sensing.__dict__,
-                "servo_fit": regime.servo_fit, "n_calibration_hits": len(parts["calibration"][0]),
+                "servo_fit": regime.servo_fit, "dynamics": regime.dynamics.__dict__,
+                "n_calibration_hits": len(parts["calibration"][0]),
                 "controllers": results},
                ctx.output.cell, REGIME_CELL, ctx.provenance())
