@@ -112,7 +112,8 @@ def combination_fits(cameras: list[Camera], px: list[np.ndarray], conf: list[np.
         ok = ((ratio <= 1) & (count >= MIN_JOINTS)).all(axis=1)
         agree[k, frames] = ok
         error[k, frames[ok]] = ratio[ok].mean(axis=1)
-        with np.errstate(all="ignore"):
+        with warnings.catch_warnings():  # all-NaN: a frame whose views fit no joint
+            warnings.simplefilter("ignore", RuntimeWarning)
             centre[k, frames] = np.nanmedian(points.reshape(n, n_joints, 3), axis=1)
     return combos, agree, error, centre
 
