@@ -92,7 +92,9 @@ def resolve(task_jac: np.ndarray, task_velocity: np.ndarray, robot: Robot, q: np
     # (JW)^+ = (JW)^T (JW (JW)^T + lambda^2 I)^-1: one 5 x 5 solve for both right-hand sides
     gram = jw @ jw.T
     gram.flat[:: len(gram) + 1] += params.damping**2 + params.error_damping * (task_velocity @ task_velocity)
-    sol = np.linalg.solve(gram, np.column_stack([task_velocity, jw @ pull]))
+    rhs = np.empty((len(gram), 2))  # (column_stack's wrapper costs more than the solve at this size)
+    rhs[:, 0], rhs[:, 1] = task_velocity, jw @ pull
+    sol = np.linalg.solve(gram, rhs)
     direction = w * (jw.T @ sol[:, 0])
     null = w * (pull - jw.T @ sol[:, 1])
     return direction, null
@@ -104,7 +106,7 @@ def velocity_bounds(robot: Robot, q: np.ndarray, qd: np.ndarray, dt: float) -> t
     to_max, to_min = robot.q_max - q, q - robot.q_min
     # braking only binds within v_max^2 / (2 a_max) + one step of a limit; skip its square roots elsewhere
     free = robot.v_max * (robot.v_max / (2 * robot.a_max) + dt)
-    if np.all(to_max > free) and np.all(to_min > free):
+    if (to_max > free).all() and (to_min > free).all():
         hi, lo = robot.v_max, -robot.v_max
     else:
         hi = np.minimum(robot.v_max, braking_speed(to_max, robot.a_max, dt))
@@ -148,13 +150,13 @@ def control_step(robot: Robot, q: np.ndarray, qd: np.ndarray, goal_xz: np.ndarra
     task_jac, error, p = task(robot, q, goal_xz, params)
     direction, null = resolve(task_jac, params.gain * error, robot, q, params)
     commanded = direction + null
-    fastest = np.max(np.abs(commanded) / robot.v_max)
+    fastest = (np.abs(commanded) / robot.v_max).max()
     beta_v = 1.0 / fastest if fastest > 0 else np.inf
     # each joint's remaining displacement is |d_i| / K; the scale whose speed can still stop there is
     # braking_speed(|d_i| / K) / |d_i|, written without the division so that d_i = 0 is harmless
     gain_dt = params.gain * params.dt
-    beta_brake = 2.0 / gain_dt / np.max(braking_denominator(np.abs(direction) / params.gain, robot.a_max,
-                                                             params.dt))
+    beta_brake = 2.0 / gain_dt / braking_denominator(np.abs(direction) / params.gain, robot.a_max,
+                                                     params.dt).max()
     wanted = min(1.0, alpha * beta_v, beta_brake)
     qd_new = scale_along(commanded, wanted, lo, hi)
     q_new = np.minimum(np.maximum(q + qd_new * params.dt, robot.q_min), robot.q_max)
