@@ -64,6 +64,7 @@ rule all:
         expand("interim/paddle/{session}.parquet", session=sessions() if has_optitrack() else []),
         "reports/tables/curation.md",
         "reports/tables/cv_results.md",
+        GRID_SLICE,
         "reports/tables/strike_error.md",
         "reports/tables/uncertainty.md",
         "reports/tables/robot.md",

@@ -14,7 +14,14 @@ from pingpong.common.artifacts import Provenance
 from pingpong.curation.labels import reflect_frames
 from pingpong.frames import N_INPUT, N_PRED_FRAMES
 from pingpong.learning.adamw import AdamW
-from pingpong.learning.grid import cv_folds, expand_grid, grid_summary, select_best
+from pingpong.learning.grid import (
+    config_id,
+    cv_folds,
+    expand_grid,
+    grid_configurations,
+    grid_summary,
+    select_best,
+)
 from pingpong.learning.loss import (
     LATE_FRAMES,
     Y_LOSS,
@@ -433,3 +440,29 @@ def test_select_best_by_mean_over_folds():
     assert summary["mean_val_loss"].tolist() == pytest.approx([0.4, 0.6])
     with pytest.raises(ValueError, match="config a lacks folds \\[2\\]"):
         select_best(results.drop(index=2))
+
+
+GRID_KEYS = {"cell": ["rnn", "lstm", "gru"], "lr": [1e-2, 1e-3, 1e-4], "rnn_hidden": [100, 200, 400]}
+
+
+@settings(max_examples=30, deadline=None)
+@given(sample=st.integers(1, 40), seed=st.integers(0, 2**32 - 1))
+def test_grid_sample_is_a_seeded_subset_in_grid_order(sample, seed):
+    everything = expand_grid(GRID_KEYS)
+    drawn = grid_configurations(GRID_KEYS, sample, {}, np.random.default_rng(seed))
+    assert len(drawn) == min(sample, len(everything))
+    order = [everything.index(c) for c in drawn]  # a subset of the grid, without repeats, in its order
+    assert order == sorted(set(order))
+    assert drawn == grid_configurations(GRID_KEYS, sample, {}, np.random.default_rng(seed))
+
+
+def test_grid_sample_none_is_the_whole_grid_and_extras_join_once():
+    inside = {"cell": "rnn", "lr": 1e-3, "rnn_hidden": 100}
+    outside = {"cell": "gru", "lr": 3e-3, "rnn_hidden": 64}
+    configs = grid_configurations(GRID_KEYS, None, {"inside": inside, "outside": outside, "again": outside}, np.random.default_rng(0))
+    assert len(configs) == 27 + 1  # `inside` is a grid point already; `outside` joins once
+    assert configs[-1] == {"config_id": config_id(outside), **outside}
+    sliced = grid_configurations(GRID_KEYS, 5, {"outside": outside}, np.random.default_rng(0))
+    assert len(sliced) == 6 and sliced[-1]["rnn_hidden"] == 64
+    with pytest.raises(ValueError, match="must set exactly the grid's keys"):
+        grid_configurations(GRID_KEYS, 5, {"bad": {"cell": "rnn"}}, np.random.default_rng(0))

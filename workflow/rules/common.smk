@@ -5,7 +5,8 @@ from pathlib import Path
 from pingpong.common.codehash import stage_code_hash
 from pingpong.common.stages import STAGE_SCRIPT as _SCRIPT
 from pingpong.io.lab_layout import CAMERA_SUFFIXES, lab_layout_problems, twin_over_recordings
-from pingpong.learning.grid import expand_grid
+from pingpong.common.seeding import rng_for
+from pingpong.learning.grid import grid_configurations
 
 STAGE_SCRIPT = f"../../{_SCRIPT}"  # every rule's script, relative to workflow/rules/
 CONDA_ENV = "../envs/pingpong.yaml"  # every rule's software, for --sdm conda (make installs it into .venv)

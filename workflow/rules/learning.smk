@@ -4,7 +4,10 @@ TRAINING = config["training"]
 TRAIN_SETTINGS = {k: TRAINING[k] for k in ("batch_size", "max_epochs", "patience", "min_delta",
                                            "early_frame_weight", "reflect_augment")}
 TRAIN_SETTINGS["device"] = config["device"]
-GRID = {c["config_id"]: c for c in expand_grid(TRAINING["grid"])}
+GRID = {c["config_id"]: c for c in grid_configurations(TRAINING["grid"], TRAINING["grid_sample"],
+                                                      TRAINING["grid_extra"], rng_for(config["seed"], "grid"))}
+# report_grid_slice's table, in rule all where training.grid_extra names nets to compare with the winner
+GRID_SLICE = ["reports/tables/grid_slice.md"] if TRAINING["grid_extra"] else []
 FOLDS = range(TRAINING["n_folds"])
 
 
@@ -124,6 +127,28 @@ rule report_strike_error:
         code=code("report_strike_error"),
     log:
         "logs/report_strike_error.log",
+    conda:
+        CONDA_ENV
+    script:
+        STAGE_SCRIPT
+
+
+rule report_grid_slice:
+    input:
+        dataset="processed/dataset.parquet",
+        selection="processed/models/selection.json",
+        results=expand("processed/models/cv/{config_id}/fold{fold}_result.json", config_id=GRID, fold=FOLDS),
+        cv_models=expand("processed/models/cv/{config_id}/fold{fold}.safetensors", config_id=GRID, fold=FOLDS),
+    output:
+        md="reports/tables/grid_slice.md",
+        csv="reports/tables/grid_slice.csv",
+    params:
+        extra=TRAINING["grid_extra"],
+        sample=TRAINING["grid_sample"],
+        seed=config["seed"],
+        code=code("report_grid_slice"),
+    log:
+        "logs/report_grid_slice.log",
     conda:
         CONDA_ENV
     script:

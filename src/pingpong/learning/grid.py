@@ -29,6 +29,29 @@ def expand_grid(grid: dict) -> list[dict]:
     return [{"config_id": config_id(c), **c} for c in configs]
 
 
+def grid_configurations(grid: dict, sample: int | None, extra: dict[str, dict],
+                        rng: np.random.Generator) -> list[dict]:
+    """The configurations a search trains: `sample` of the grid's (expand_grid) drawn at random without
+    replacement, kept in grid order (all of them when sample is None or covers the grid), then each
+    configuration of `extra` (name -> values) not already among them (e.g. the paper's own net, which
+    lies outside its grid, and the default net), with its config_id. A random slice is the cheap search
+    (Bergstra & Bengio 2012, JMLR 13): 100 draws hold one of the grid's best 5 % with probability
+    1 - 0.95^100 = 0.994, where the paper's whole grid (2,916 x 5 folds) is a cluster's work."""
+    configs = expand_grid(grid)
+    if sample is not None and sample < len(configs):
+        configs = [configs[i] for i in np.sort(rng.choice(len(configs), size=sample, replace=False))]
+    ids = {c["config_id"] for c in configs}
+    for name, values in extra.items():
+        if set(values) != set(grid):
+            raise ValueError(f"training.grid_extra.{name}: {values} must set exactly the grid's keys "
+                             f"{sorted(grid)}")
+        config = {"config_id": config_id(values), **values}
+        if config["config_id"] not in ids:
+            configs.append(config)
+            ids.add(config["config_id"])
+    return configs
+
+
 def cv_folds(fold_ids) -> dict[int, tuple[np.ndarray, np.ndarray]]:
     """For each fold f of the training part: (train indices, validation indices) with validation = the
     hits whose fold id is f. Indices are positions in `fold_ids` (N,), ascending."""
