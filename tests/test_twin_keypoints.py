@@ -10,14 +10,26 @@ import yaml
 from conftest import TINY_RUN
 from workflow_util import ROOT
 
+from pingpong.common.camera import Camera
 from pingpong.common.config import schema_defaults
 from pingpong.common.seeding import rng_for
 from pingpong.frames import MODEL_JOINT_IDS
-from pingpong.reports.twin_keypoints import camera_errors, camera_rows, expected_swap_share, joint_rows
+from pingpong.io.openpose_json import format_keypoints_json, keypoints_filename, read_keypoints_folder
+from pingpong.reports.twin_keypoints import (
+    camera_errors,
+    camera_rows,
+    expected_swap_share,
+    joint_rows,
+    read_twin_keypoints,
+)
 from pingpong.twin.openpose_sim import (
+    OCCLUDER_RADIUS,
     Carry,
     KeypointErrors,
+    _occluded,
     default_keypoint_errors,
+    project_pixels,
+    projected_people,
     simulate_openpose_frames,
     spectator_joints,
 )
@@ -29,6 +41,76 @@ N_FRAMES = 6000
 def test_the_defaults_are_the_schemas():
     section = schema_defaults(ROOT / "config/schema.yaml")["twin"]["keypoint_errors"]
     assert KeypointErrors.from_config(section) == default_keypoint_errors()
+
+
+# The report's speed-ups (issue 41: 58 s of the default run) compute what they replaced, bit for bit.
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_project_pixels_is_opencvs_projection_bit_for_bit(seed):
+    """On the twin's rig and on strongly distorted cameras, points near and far, in front of the camera
+    and behind it, at its centre's depth (z = 0)."""
+    rng = np.random.default_rng(seed)
+    cameras = make_rig(rng)
+    strong = [Camera(c.name, c.K, rng.uniform(-0.4, 0.4, 5), c.R, c.t, c.width, c.height) for c in cameras]
+    points = rng.normal(0.0, 2.0, (20000, 3)) * rng.uniform(0.01, 3.0, (20000, 1))
+    for camera in cameras + strong:
+        depth = points[:5] @ camera.R[2] + camera.t[2]
+        on_plane = points[:5] - depth[:, None] * camera.R[2]  # depth 0: OpenCV divides by 1 there
+        cloud = np.vstack([points, on_plane, camera.center])
+        assert np.array_equal(project_pixels(camera, cloud), camera.project(cloud), equal_nan=True)
+
+
+def _occluded_every_frame(px, depth, f):
+    """The occlusion test on every frame and pair (before the overlap bounds)."""
+    hidden = np.zeros(depth.shape, bool)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        width2 = (f * OCCLUDER_RADIUS / depth) ** 2
+        for i in range(len(px)):
+            for k in range(len(px)):
+                if k != i:
+                    dist2 = ((px[i][:, :, None] - px[k][:, None]) ** 2).sum(axis=-1)
+                    covers = (dist2 < width2[k][:, None]) & (depth[k][:, None] < depth[i][:, :, None]) \
+                        & (depth[k][:, None] > 0.1)
+                    hidden[i] |= covers.any(axis=2)
+    return hidden
+
+
+def test_the_occlusion_bounds_keep_every_covered_joint():
+    """People walking across each other's line of sight, some absent, some partly behind the camera:
+    the bounded test finds exactly the joints the test of every frame finds."""
+    from test_openpose_io import STANDING
+
+    rng = np.random.default_rng(5)
+    camera = make_rig(rng)[2]  # at the -y end, looking along +y
+    n = 400
+    t = np.linspace(0.0, 1.0, n)[:, None, None]
+    far = np.repeat(STANDING[None], n, 0) + [0.0, 2.4, 0.0]
+    crossing = STANDING[None] + [-2.0, 0.5, 0.0] + t * [4.0, 0.0, 0.0]  # walks through the line of sight
+    near_camera = STANDING[None] + (camera.center - STANDING[8]) + t * [0.6, 0.0, 0.0]  # straddles the camera
+    bodies = np.stack([far, crossing, near_camera])
+    bodies[1, rng.random(n) < 0.2] = np.nan
+    _, px, depth = projected_people(camera, bodies)
+    expected = _occluded_every_frame(px, depth, camera.K[0, 0])
+    assert expected[0].any() and (depth < 0.1).any()  # the case is there: covered joints, joints behind
+    assert np.array_equal(_occluded(px, depth, camera.K[0, 0]), expected)
+
+
+def test_the_twins_keypoints_read_as_the_general_reader_reads_them(tmp_path):
+    """read_twin_keypoints against io.openpose_json.read_keypoints_folder on simulated frames (0 to 4
+    people, lost joints, the twin's 6 digits), and an error naming the folder for a missing frame."""
+    rng = np.random.default_rng(11)
+    for frame in range(300):
+        count = int(rng.integers(0, 5))
+        people = np.stack([rng.uniform(0, 480, (count, 25)) * rng.uniform(0.2, 3.0),
+                           rng.uniform(0, 360, (count, 25)), rng.uniform(0, 1, (count, 25))], -1)
+        people[rng.random(people.shape[:2]) < 0.1] = 0.0
+        (tmp_path / keypoints_filename("s00_cam1", frame)).write_text(format_keypoints_json(people))
+    frames, expected = read_keypoints_folder(tmp_path, n_frames=300)
+    got = read_twin_keypoints(tmp_path, "s00_cam1", 300)
+    assert np.array_equal(got, expected) and expected.shape[1] == 4
+    (tmp_path / keypoints_filename("s00_cam1", 7)).unlink()
+    with pytest.raises(ValueError, match=f"{tmp_path}: 299 keypoints files.*1 missing"):
+        read_twin_keypoints(tmp_path, "s00_cam1", 300)
 
 
 @pytest.fixture(scope="module")

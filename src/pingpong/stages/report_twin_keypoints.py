@@ -7,7 +7,6 @@ import pandas as pd
 from pingpong.common.artifacts import read_json, read_table
 from pingpong.common.atomic import write_text_atomic
 from pingpong.common.camera import Camera
-from pingpong.io.openpose_json import read_keypoints_folder
 from pingpong.reports import twin_keypoints as tk
 from pingpong.twin import truth
 from pingpong.twin.openpose_sim import KeypointErrors
@@ -59,8 +58,9 @@ def main(ctx):
     for k in range(len(p["sessions"])):
         names, bodies = _session_bodies(read_table(i.people[k], truth.PEOPLE))
         for c, cam in enumerate(p["cams"]):
-            frames, detections = read_keypoints_folder(i.openpose[k * n_cams + c])
-            per_camera.append(tk.camera_errors(rig[cam], detections, bodies[:, frames], names))
+            folder = i.openpose[k * n_cams + c]
+            detections = tk.read_twin_keypoints(folder, f"{p['sessions'][k]}_{cam}", bodies.shape[1])
+            per_camera.append(tk.camera_errors(rig[cam], detections, bodies, names))
             cams.append(cam)
     joints = pd.DataFrame(tk.joint_rows(per_camera, errors))
     cameras = pd.DataFrame(tk.camera_rows(cams, per_camera))
