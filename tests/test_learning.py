@@ -459,7 +459,8 @@ def test_grid_sample_is_a_seeded_subset_in_grid_order(sample, seed):
 def test_grid_sample_none_is_the_whole_grid_and_extras_join_once():
     inside = {"cell": "rnn", "lr": 1e-3, "rnn_hidden": 100}
     outside = {"cell": "gru", "lr": 3e-3, "rnn_hidden": 64}
-    configs = grid_configurations(GRID_KEYS, None, {"inside": inside, "outside": outside, "again": outside}, np.random.default_rng(0))
+    extra = {"inside": inside, "outside": outside, "again": outside}
+    configs = grid_configurations(GRID_KEYS, None, extra, np.random.default_rng(0))
     assert len(configs) == 27 + 1  # `inside` is a grid point already; `outside` joins once
     assert configs[-1] == {"config_id": config_id(outside), **outside}
     sliced = grid_configurations(GRID_KEYS, 5, {"outside": outside}, np.random.default_rng(0))
