@@ -75,6 +75,8 @@ rule report_robot:
     input:
         sims=expand("processed/sim/{controller}.parquet", controller=ROBOT_CONTROLLERS),
         choices=expand("processed/sim/{controller}.json", controller=ROBOT_CONTROLLERS),
+        # a calibrated regime's fitted base speed and start (its limits table's robot)
+        calibration=REGIME_CALIBRATION,
         limits="config/robot/limits.yaml",
         urdf="config/robot/iiwa14_ridgeback.urdf",
     output:

@@ -7,7 +7,7 @@ from pingpong.reports.robot import limits_table, robot_table
 from pingpong.reports.tables import write_report_table
 from pingpong.robot.model import ACCELERATION_SETS, read_limits, regime_robot, worst_case_accelerations
 from pingpong.robot.regimes import Dynamics
-from pingpong.robot.schemas import CHOICE, SIM
+from pingpong.robot.schemas import CHOICE, REGIME_CALIBRATION, SIM
 
 CAPTION = """The simulated KUKA iiwa 14 on its Ridgeback base against every test hit's measured flight
 (mirrored towards the robot), by region of the true strike point: total hits, balls hit (the ball centre
@@ -51,7 +51,9 @@ def main(ctx):
     caption = CAPTION.format(n_boot=p["n_bootstrap"], controllers="; ".join(describe(c) for c in choices),
                              setting=p["setting"])
     write_report_table(table, o.md, o.csv, "Simulated robot (Tables 2-4)", caption)
-    dynamics = Dynamics(**p["dynamics"])
+    calibration = ctx.optional_input("calibration")  # a calibrated regime's: its fitted dynamics knobs
+    knobs = {} if calibration is None else read_json(calibration, REGIME_CALIBRATION).get("dynamics", {})
+    dynamics = Dynamics(**{**p["dynamics"], **knobs})
     robot = regime_robot(i.urdf, i.limits, dynamics)
     derived = worst_case_accelerations(robot, rng_for(p["seed"], "robot_limits"), p["limit_samples"])
     sets = {name: read_limits(i.limits, name)["a_max"] for name in ACCELERATION_SETS}
