@@ -183,7 +183,7 @@ def twin_reports():
         return []
     return ["reports/tables/twin_vs_real.md", "reports/tables/perception_accuracy.md",
             "reports/tables/curation_accuracy.md", "reports/tables/uncertainty_oracle.md",
-            "reports/tables/twin_keypoints.md"]
+            "reports/tables/twin_keypoints.md", "reports/tables/uncertainty_learnability.md"]
 
 
 # Report tables by stage, each shown as a page in the HTML report (workflow/rules/report.smk).
@@ -194,7 +194,7 @@ REPORT_TABLES = {
     "curation": ["curation", *(["curation_accuracy"] if TWIN_ONLY else [])],
     "learning": ["cv_results", "strike_error", "strike_error_by_frame"],
     "uncertainty": ["uncertainty", "uncertainty_verdict", "uncertainty_by_frame", "uncertainty_path_band",
-                    *(["uncertainty_oracle"] if TWIN_ONLY else [])],
+                    *(["uncertainty_oracle", "uncertainty_learnability"] if TWIN_ONLY else [])],
     "robot": ["robot", "robot_limits", "robot_ablation", "servo_accuracy", "robot_region_bias",
               "robot_regimes", "robot_regime_calibration",
               *(["robot_risk_control"] if config["robot"]["estimator"] else [])],

@@ -117,3 +117,25 @@ rule report_uncertainty_oracle:
         CONDA_ENV
     script:
         STAGE_SCRIPT
+
+
+rule report_oracle_learnability:
+    input:
+        dataset="processed/dataset.parquet",
+        predictions="processed/predictions.parquet",
+        oracle=expand("raw/twin_truth/{session}/strike_oracle.parquet", session=sessions()),
+        verdict="reports/tables/uncertainty_verdict.csv",
+    output:
+        md="reports/tables/uncertainty_learnability.md",
+        csv="reports/tables/uncertainty_learnability.csv",
+    params:
+        sessions=sessions(),
+        seed=config["seed"],
+        coverage=config["uncertainty"]["coverage"],
+        code=code("report_oracle_learnability"),
+    log:
+        "logs/report_oracle_learnability.log",
+    conda:
+        CONDA_ENV
+    script:
+        STAGE_SCRIPT
