@@ -35,6 +35,8 @@ def _spearman_rows(u: np.ndarray, oracle: np.ndarray, rng: np.random.Generator) 
     95 % bootstrap interval over hits."""
     columns = 30 - np.asarray(ORACLE_FRAMES)
     n = len(u)
+    if n < 2:  # no ranking, and no spread to resample
+        return {"n_hits": n, "spearman_oracle_1_20": np.nan, "low95": np.nan, "high95": np.nan}
     resamples = np.vstack([np.arange(n), rng.integers(0, n, size=(N_BOOTSTRAP, n))])
     boot = bootstrap_within_frame(u[:, columns], oracle[:, columns], resamples)
     return {"n_hits": n, "spearman_oracle_1_20": float(boot[0]), "low95": float(np.percentile(boot[1:], 2.5)),
@@ -61,7 +63,8 @@ def main(ctx):
                           **_spearman_rows(u[m], oracle[m], rng)})
     table = pd.DataFrame(table)
     calibration = table[table["part"] == "calibration"]
-    best = calibration["name"].iloc[int(np.argmax(calibration["spearman_oracle_1_20"].to_numpy()))]
+    rho = np.nan_to_num(calibration["spearman_oracle_1_20"].to_numpy(), nan=-2.0)
+    best = calibration["name"].iloc[int(np.argmax(rho))]
     ceiling = table[(table["name"] == best) & (table["part"] == "test")].assign(kind="ceiling")
     table = pd.concat([table, ceiling, estimator_shares(pd.read_csv(ctx.input.verdict), ceiling.iloc[0],
                                                         p["coverage"])], ignore_index=True)
