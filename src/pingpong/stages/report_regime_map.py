@@ -30,6 +30,12 @@ this region's n test hits (binomial), i.e. what the bar can show on this many hi
 once: {joint}. end_distance_within: the mean within the paper's mean +- 0.5 std. Knobs: {knobs}."""
 
 
+def fit_summary(stats: list[dict]) -> str:
+    """Servo alone by region on a calibration's fitting hits, e.g. 'left 37/63 = 59 %, 9.7 cm'."""
+    return ", ".join(f"{s['region']} {s['hits']}/{s['n']} = {100 * s['hit_rate']:.0f} %, "
+                     f"{s['end_distance_cm']:.1f} cm" for s in stats)
+
+
 def main(ctx):
     p, o = ctx.params, ctx.output
     cells = [read_json(f, REGIME_CELL) for f in ctx.input.cells]
@@ -41,8 +47,9 @@ def main(ctx):
     calibrations = [read_json(f, REGIME_CALIBRATION) for f in ctx.input.calibrations]
     calibrated = [c for c in cells if c["cell"] in {k["regime"] for k in calibrations}]
     knobs = "; ".join(f"{k['regime']}: {k['sensing']}, servo fit {k['servo_fit']}, dynamics "
-                      f"{k.get('dynamics', {})} (fitted on {k['n_calibration_hits']} hits of "
-                      f"{'+'.join(k['splits'])})" for k in calibrations) or "none"
+                      f"{k.get('dynamics', {})}, fitted on {k['n_calibration_hits']} hits of "
+                      f"{'+'.join(k['splits'])} (there: {fit_summary(k['calibration_stats'])})"
+                      for k in calibrations) or "none"
     bar = calibration_table(calibrated)
     joint = "; ".join(f"{name} {rows['bar_probability_if_calibrated'].prod():.2f}"
                       for name, rows in bar.groupby("regime", sort=False)) or "none"
