@@ -8,6 +8,7 @@ import pandas as pd
 import pytest
 from workflow_util import ROBOT_LIMITS, ROBOT_URDF
 
+from pingpong.common.artifacts import read_json
 from pingpong.common.config import ConfigError, schema_defaults
 from pingpong.frames import STRIKE_Y
 from pingpong.robot.calibration import (
@@ -27,6 +28,7 @@ from pingpong.robot.flights import HitFlight
 from pingpong.robot.model import N_BASE, load_robot, paddle_position, regime_robot
 from pingpong.robot.regime_map import alpha_monotone, value_row
 from pingpong.robot.regimes import Sensing, map_cells, parse_regime, sense, with_sensing
+from pingpong.robot.schemas import REGIME_CALIBRATION, REGIME_CELL
 
 REGIMES = schema_defaults("config/schema.yaml")["robot"]["regimes"]
 
@@ -246,6 +248,17 @@ def test_tiny_run_regime_tables_are_consistent(tiny_run):
         assert paper[f"hits_{name}"] == all_rows.loc[name, "hits"]
     calibration = pd.read_csv(tiny_run / "reports/tables/robot_regime_calibration.csv")
     assert set(calibration["region"]) <= set(PAPER_TABLE2) and (calibration["regime"] == "table2").all()
+    assert (calibration["hit_pct_ci95_low"] <= calibration["hit_pct"]).all()
+    assert (calibration["hit_pct"] <= calibration["hit_pct_ci95_high"]).all()
+    inside = calibration["paper_hit_pct"].between(calibration["hit_pct_ci95_low"],
+                                                  calibration["hit_pct_ci95_high"])
+    assert (calibration["paper_in_ci95"] == inside).all()
+    assert calibration["bar_probability_if_calibrated"].between(0, 1).all()
+    # the calibrated reach reached the cell: its dynamics are the calibration artifact's
+    fitted = read_json(tiny_run / "processed/robot/regime_table2.json", REGIME_CALIBRATION)
+    cell = read_json(tiny_run / "processed/robot/regime_map/table2.json", REGIME_CELL)
+    assert fitted["dynamics"] and all(cell["dynamics"][k] == v for k, v in fitted["dynamics"].items())
+    assert fitted["splits"] == ["train", "calibration"]
     for name in defaults["named"]:
         assert (tiny_run / f"reports/figures/robot_alpha_surface_{name}.png").stat().st_size > 0
     assert (tiny_run / "reports/figures/robot_regime_map.png").stat().st_size > 0
