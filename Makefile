@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 
-.PHONY: setup run test lint report clean
+.PHONY: setup run paper-scale test lint report clean
 
 setup: $(VENV)/.installed
 
@@ -35,6 +35,15 @@ $(VENV)/.installed-test: $(VENV)/.installed
 
 run: setup
 	$(BIN)/snakemake
+
+# The paper's number of hits through every stage (issue 38), in a clone of its own (its artifacts share the
+# default run's paths). Resumable: run it again and Snakemake goes on where it stopped; each part's times are
+# appended to paper_scale_times.jsonl, and analysis/paper_scale_summary.py writes docs/results/paper_scale.md.
+PAPER_SCALE_CONFIGS := config/config.yaml config/paper_hits.yaml
+
+paper-scale: setup
+	$(BIN)/python analysis/timed_run.py paper_scale_times.jsonl -- $(BIN)/snakemake --rerun-incomplete \
+		--configfile $(PAPER_SCALE_CONFIGS)
 
 test: $(VENV)/.installed-test
 	$(BIN)/python -m pytest -q
