@@ -7,7 +7,7 @@ missing it is not counted against recall; detecting it within 5 px is not counte
 """
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -33,6 +33,8 @@ FALSE_PX = 5.0  # a detection further than this from the truth is a false detect
 WIDTH, HEIGHT = 480, 360
 WALL_BGR = render.hsv_to_bgr(*render.WALL_HSV)
 WINDOW_ROWS = 2 * BallDetector().scaled(WIDTH)[2] + 1  # the rows of a search window at 480 px wide
+# the detector before the blur test: no saturation reaches its peak, and no new track looks back
+COLOUR_TEST_ALONE = replace(BallDetector(), blur_peak_saturation=256, track_back_frames=0)
 
 
 @pytest.fixture(scope="module")
@@ -65,11 +67,9 @@ def scored(twin_stream):
     return found, error, truth["visibility"].to_numpy()
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "issue 41's harder twin: 29 of 2,746 visible balls missed (98.94 %, bar 99 %), all far balls of "
-    "1.5-2.3 px radius streaking 6-19 px a frame, whose blur washes their saturation to a median ~85 (the "
-    "detector's floor: 170); the perception report's ball-recall checks fail the same way (issue 41, open)"))
 def test_visible_balls_are_found_within_a_pixel(scored):
+    # measured 99.82 % (5 of 2,746 missed); the colour test alone missed 29 (98.94 %), far balls of 1.5-2.3
+    # px radius streaking 6-19 px a frame, that the blur test and tracking back now find
     found, error, visibility = scored
     visible = visibility >= VISIBLE
     hit = found["detected"].to_numpy() & (error <= FALSE_PX)
@@ -77,6 +77,18 @@ def test_visible_balls_are_found_within_a_pixel(scored):
     assert hit[visible].mean() >= 0.99
     assert np.median(error[visible & hit]) < 1.0  # measured 0.12 px
     assert np.percentile(error[visible & hit], 95) < 1.0
+
+
+def test_the_blur_test_adds_true_balls_only(twin_stream, scored):
+    frames, truth = twin_stream
+    found, error, visibility = scored
+    colour_alone = detect_stream(frames, COLOUR_TEST_ALONE)
+    added = found["detected"].to_numpy() & ~colour_alone["detected"].to_numpy()
+    assert added.sum() >= 20  # measured 31
+    assert (visibility[added] > 0).all() and error[added].max() < 3.0  # measured 2.0 px
+    assert np.median(error[added]) < 0.5  # measured 0.2 px
+    kept = colour_alone["detected"].to_numpy()  # and where the colour test finds the ball, nothing changes
+    pd.testing.assert_frame_equal(found[kept], colour_alone[kept])
 
 
 def test_false_detections_are_rare(scored):
@@ -109,9 +121,9 @@ def test_a_corrupt_frame_is_marked_logged_skipped_and_tracking_restarts(twin_str
     searched_around = []
     real_detect = detection.detect_ball
 
-    def spy(image, detector, previous_uv=None):
+    def spy(image, detector, previous_uv=None, velocity=None):
         searched_around.append(previous_uv)
-        return real_detect(image, detector, previous_uv)
+        return real_detect(image, detector, previous_uv, velocity)
 
     monkeypatch.setattr(detection, "detect_ball", spy)
     with caplog.at_level(logging.WARNING, logger=detection.__name__):
@@ -174,17 +186,33 @@ def test_a_damaged_frame_that_decodes_is_marked_and_its_ball_not_reported(twin_s
                                found.iloc[start:start + 12].drop(index=start + bad)[["u", "v"]].to_numpy())
 
 
+@dataclass(frozen=True)
+class CvFrame:
+    """A JPEG frame decoded whole by cv2.imdecode, as the detector did before reduced decoding."""
+
+    time_ns: int
+    data: bytes
+
+    def decode(self, reduction: int = 1):
+        assert reduction == 1
+        return cv2.imdecode(np.frombuffer(self.data, np.uint8), cv2.IMREAD_COLOR), ""
+
+
 def test_at_480x360_every_frame_is_searched_at_full_resolution_as_before(twin_stream, scored):
     frames, _ = twin_stream
     found, _, _ = scored
     assert stream_reduction(WIDTH) == 1
+    colour_alone = COLOUR_TEST_ALONE
     previous, rows = None, []
-    for frame in frames:  # the detector before reduced decoding: each frame decoded whole by cv2
+    for frame in frames:  # the colour test's tracker before reduced decoding: each frame decoded whole by cv2
         image = cv2.imdecode(np.frombuffer(frame.data, np.uint8), cv2.IMREAD_COLOR)
-        ball = detect_ball(image, BallDetector(), previous)
+        ball = detect_ball(image, colour_alone, previous)
         previous = ball[:2] if ball else None
         rows.append(ball or (np.nan, np.nan, 0))
-    np.testing.assert_array_equal(found[["u", "v", "area_px"]].to_numpy(), np.array(rows, np.float64))
+    np.testing.assert_array_equal(detect_stream(frames, colour_alone)[["u", "v", "area_px"]].to_numpy(),
+                                  np.array(rows, np.float64))
+    pd.testing.assert_frame_equal(detect_stream([CvFrame(f.time_ns, f.data) for f in frames], BallDetector()),
+                                  found)
     pd.testing.assert_frame_equal(detect_stream(frames, BallDetector(), reduction=1), found)
 
 
@@ -211,13 +239,19 @@ class CountingFrame:
 def test_a_tracked_ball_is_searched_on_its_window_rows_alone(twin_stream, scored):
     frames, _ = twin_stream
     found, _, _ = scored
-    calls = []
-    out = detect_stream([CountingFrame(f, calls) for f in frames], BallDetector())
+    calls = [[] for _ in frames]
+    out = detect_stream([CountingFrame(f, c) for f, c in zip(frames, calls, strict=True)], BallDetector())
     pd.testing.assert_frame_equal(out, found)  # and so as the whole images (the test above)
-    tracked = int(found["detected"].to_numpy()[:-1].sum())  # frames after one with the ball
-    assert calls.count("whole") == 1 + len(frames) - tracked  # the first frame's size, then no ball
-    assert [c for c in calls if c != "whole"] and all(c <= WINDOW_ROWS for c in calls if c != "whole")
-    assert len(calls) == len(frames) + 1
+    first = [calls[0][1]] + [c[0] for c in calls[1:]]  # each frame's search (frame 0 first reads its size)
+    again = [calls[0][2:]] + [c[1:] for c in calls[1:]]  # decoded again: looked back at from a new track
+    assert all(r != "whole" and r <= WINDOW_ROWS for c in again for r in c)  # its window's rows alone
+    looked_back = np.array([bool(c) for c in again])
+    detected = found["detected"].to_numpy()
+    found_in_search = detected & ~looked_back  # the others were found looking back
+    assert (looked_back & detected).any() and (looked_back & ~detected).any()
+    # a frame after one with the ball decodes the window's rows, any other the whole image
+    assert [c == "whole" for c in first] == [True] + list(~found_in_search[:-1])
+    assert all(c <= WINDOW_ROWS for c in first if c != "whole")
 
 
 def test_a_frame_of_another_size_is_searched_whole_not_on_the_first_frames_rows(twin_stream, scored):
@@ -323,6 +357,47 @@ def test_a_red_yellow_seam_is_not_a_ball_but_a_ball_on_either_colour_is(blur):
         assert found is not None and np.hypot(found[0] - u, found[1] - v) < 0.5
 
 
+def streak_image(centre, velocity, radius: float, seed: int = 0) -> np.ndarray:
+    """A 480x360 float image of the grey floor and a ball moving at `velocity` px a frame, blurred as the
+    twin blurs it (twin.cameras: 5 positions over a 4 ms shutter, 0.4 of a 10 ms frame), centred at
+    `centre` mid-exposure; with the twin's sensor noise."""
+    image = canvas(render.hsv_to_bgr(*render.FLOOR_HSV))
+    blurred = np.zeros_like(image)
+    for t in np.linspace(-0.2, 0.2, 5):
+        layer = image.copy()
+        draw_disc(layer, centre[0] + t * velocity[0], centre[1] + t * velocity[1], radius, render.BALL_BGR)
+        blurred += layer / 5
+    return blurred + np.random.default_rng(seed).normal(0, 2.0, image.shape)
+
+
+@pytest.mark.parametrize(("radius", "speed"), [(1.6, 9.0), (1.8, 12.0), (2.0, 15.0), (2.2, 18.0)])
+def test_a_far_fast_ball_is_found_by_the_blur_test_where_it_is_tracked_to(radius, speed):
+    # the misses of the colour test on the twin: far balls of 1.5-2.3 px radius streaking 6-19 px a frame
+    centre, velocity = np.array([200.3, 150.7]), np.array([0.8, -0.6]) * speed
+    image = _jpeg(streak_image(centre, velocity, radius))
+    previous = tuple(centre - velocity)
+    assert detect_ball(image, BallDetector(), previous) is None  # the colour test alone
+    found = detect_ball(image, BallDetector(), previous, tuple(velocity))
+    assert found is not None and np.hypot(found[0] - centre[0], found[1] - centre[1]) < 0.25  # measured 0.17
+    # not where the track does not lead: a blob across the motion, or beyond the gate (4 px at 480 wide)
+    assert detect_ball(image, BallDetector(), previous, (velocity[1], -velocity[0])) is None
+    assert detect_ball(image, BallDetector(), tuple(centre - velocity + 5.0), tuple(velocity)) is None
+
+
+def test_a_new_track_is_followed_back_through_the_blurred_frames_before_it():
+    # a far ball streaking 15 px a frame, too washed for the colour test in its first five frames; then,
+    # nearer (radius 3), the colour test finds it, and the new track looks back along its motion
+    velocity = np.array([15.0, 4.0])
+    centres = [np.array([100.4, 120.6]) + k * velocity for k in range(8)]
+    images = [streak_image(c, velocity, 2.0 if k < 5 else 3.0, seed=k) for k, c in enumerate(centres)]
+    frames = [CameraFrame(k, render.encode_jpeg(to_uint8(image), 90)) for k, image in enumerate(images)]
+    assert detect_stream(frames, COLOUR_TEST_ALONE)["detected"].tolist() == [False] * 5 + [True] * 3
+    out = detect_stream(frames, BallDetector())
+    assert out["detected"].all()
+    assert np.hypot(*(out[["u", "v"]].to_numpy() - centres).T).max() < 0.3
+    assert not detect_stream(frames, replace(BallDetector(), track_back_frames=2))["detected"][:3].any()
+
+
 def test_the_window_searches_only_around_the_previous_detection():
     image = canvas()
     draw_disc(image, 100.4, 100.2, 2.5, render.BALL_BGR)
@@ -401,8 +476,9 @@ def test_a_tracked_ball_is_measured_on_the_half_scale_decode_alone():
     balls = [[p] for p in path[:6]] + [[], []] + [[p] for p in path[8:]]  # out of sight for two frames
     frames = [Counted(wide_frame(k, b, seed=k)) for k, b in enumerate(balls)]
     out = detect_stream(frames, BallDetector())
-    assert [f.decodes for f in frames] == [[1, 2]] + [[2]] * 5 + [[2, 1], [2], [2], [2]]
-    # 1: the first frame's width sets the reduction; the lost track is looked for on the full image
+    assert [f.decodes for f in frames] == [[1, 2]] + [[2]] * 5 + [[2, 1], [2, 1], [2], [2]]
+    # 1: the first frame's width sets the reduction; the lost track is looked for on the full image, and
+    # the new track's second frame looks back at the frame before its first on the full image
     assert out["detected"].tolist() == [bool(b) for b in balls]
     seen = out[out["detected"]]
     truth = np.array([b[0][:2] for b in balls if b])

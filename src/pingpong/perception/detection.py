@@ -53,8 +53,39 @@ the 1/2 decode:
 Measured on four twin cameras, 2 rallies each at 1440x1080, full resolution -> reduced: recall 100 ->
 100, 96.2 -> 96.5, 100 -> 100, 100 -> 100 %; median error 0.184 -> 0.193, 0.137 -> 0.167, 0.179 -> 0.182,
 0.154 -> 0.172 px; frame rate 1.04-1.07 of decoding alone, from 0.75.
+
+Fast far balls: the blur test. A far ball (radius 1.5-2.5 px at 480x360) streaking 6-19 px a frame is
+smeared over its 4 ms exposure (twin.cameras) until no 4 px of it reach S 170: its saturation is washed to
+~85-185. The colour test missed 29 of 2,746 visible balls of tests/test_detection.py's stream so, and
+1.0-1.9 % on four of the default run's cameras (issue 41). A lower floor alone cannot tell them from skin (S
+95-140, and JPEG lifts patches of it to 150-170): S 120 searched anywhere in the windows around a ball seen
+up to 8 frames before took a near player's hand for it in 2.3 % of one default-run camera's frames (from
+0.009 %). So the blur test (`_blurred_blob`) takes a blob of the colour test's hue and value from S 120 with
+a pixel at 150, only where the track says the ball is: a ball tracked with a velocity (its last two
+detections), its blob centred within 4 px (at 480 wide) of the last detection + velocity, at most 25 px (a
+streak, not a hand) and, from 4 px a frame, spread along the motion rather than across. It runs where the
+colour test finds nothing in the window. A ball lost at a hit or behind a player comes back on an unknown
+path, so a new track's second detection looks back (`_track_back`) through up to 8 frames without a ball
+before its first, by the same test along its velocity reversed, each frame's window rows alone.
+Measured against the colour test alone (benchmarks/bench_detection_revisions.py --before the commit before
+the blur test; the default run's streams read where that commit's run wrote them):
+- the test stream (2 rallies, 3340 frames): recall 98.94 -> 99.82 %, false detections 0 -> 0; the 31 balls
+  added lie 0.2 px (median), at most 2.0 px from the truth; the others' centres are unchanged.
+- the default run's four cameras below 99 %: recall 98.83 -> 99.38, 98.14 -> 99.02, 98.46 -> 99.26, 98.95 ->
+  99.45 %; false detections +1 frame on two of them (0.009 -> 0.018 %, 0.151 -> 0.159 %: a ball behind a
+  hand, skin found 1.4 and 2.1 px from it), median error within 0.0003 px.
+- CPU time of detect_stream on one default-run stream (11,948 frames, best of 5,
+  benchmarks/bench_detection_revisions.py): 0.997 of the colour test alone's.
+Alternatives measured on the same streams: the gate widened by half the ball's speed, recall up to +0.04 %
+and a track locked for 3 frames on a hand; the along-the-motion rule from 2 px a frame, recall -0.04 to
+-0.13 % (tiny far balls, round at that speed); 25 -> 16 px maximum area, -0.29 % on the test stream; 16
+frames of looking back, no change; the hue band from 3 (orange blended with blue turns red), recall up to
++0.07 % and 4 new false frames on three cameras. What stays missed: streaks over saturated blue (hue below
+8) or washed below S 120 through a whole flight after a hit, and far balls of radius <= 1.35 px moving ~1 px
+a frame whose blob stays under the minimum area.
 """
 
+import collections
 import functools
 import logging
 from collections.abc import Iterable
@@ -93,6 +124,13 @@ class BallDetector:
     min_area_px: float = 36.0  # blob area bounds, px at REFERENCE_WIDTH (area scales with width^2)
     max_area_px: float = 900.0
     window_px: float = 200.0  # side of the square searched around the previous detection, px
+    # the blur test (module docstring, "Fast far balls"): a tracked ball's blob where the colour test has none
+    blur_saturation_min: int = 120  # 0..255, every pixel of the blob (same hue and value bounds)
+    blur_peak_saturation: int = 150  # 0..255, its most saturated pixel
+    blur_max_area_px: float = 225.0  # px at REFERENCE_WIDTH: a far ball's streak, not a near player's hand
+    blur_gate_px: float = 12.0  # px at REFERENCE_WIDTH: its centre from where the track puts the ball
+    blur_streak_speed_px: float = 12.0  # px a frame at REFERENCE_WIDTH from which it lies along the motion
+    track_back_frames: int = 8  # frames before a new track's first detection that the blur test looks back
 
     def scaled(self, width: int) -> tuple[float, float, int]:
         """(min area, max area, half window side) in pixels of an image `width` px wide."""
@@ -115,16 +153,15 @@ def _is_seam(hsv: np.ndarray, x: int, y: int, blob: np.ndarray, saturation_min: 
     return int(red.sum()) >= SEAM_MIN_PX and int(yellow.sum()) >= SEAM_MIN_PX
 
 
-def _largest_blob(mask: np.ndarray, min_area: float, max_area: float, hsv: np.ndarray, saturation_min: int):
-    """(bounding box x, y, w, h, blob mask (h, w) uint8 0/1, pixel count) of the largest blob within the
-    area bounds that is not a red/yellow seam (`_is_seam`), or None.
+def _blobs(mask: np.ndarray, min_area: float, max_area: float):
+    """(bounding box x, y, w, h, blob mask (h, w) uint8 0/1, pixel count) of each blob of `mask` within the
+    area bounds.
 
     Blobs are found by cv2.findContours (0.07 ms on a 480x360 mask, against 2 ms for
     connectedComponentsWithStats, which labels the whole background too) but measured by pixel count:
     cv2.contourArea of a 3-4 px blob is 0-1, its polygon running through the pixel centres.
     """
     contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
-    best = None
     for contour in contours:
         x, y, w, h = cv2.boundingRect(contour)
         if w * h < min_area:  # cannot hold enough pixels: most specks end here
@@ -133,9 +170,48 @@ def _largest_blob(mask: np.ndarray, min_area: float, max_area: float, hsv: np.nd
         cv2.drawContours(blob, [contour], -1, 1, cv2.FILLED, offset=(-x, -y))
         blob &= mask[y:y + h, x:x + w]  # inRange's 255 -> 1; holes stay out
         area = int(blob.sum())
-        if min_area <= area <= max_area and (best is None or area > best[5]) \
-                and not _is_seam(hsv, x, y, blob, saturation_min):
+        if min_area <= area <= max_area:
+            yield x, y, w, h, blob, area
+
+
+def _largest_blob(mask: np.ndarray, min_area: float, max_area: float, hsv: np.ndarray, saturation_min: int):
+    """(bounding box x, y, w, h, blob mask (h, w) uint8 0/1, pixel count) of the largest blob within the
+    area bounds that is not a red/yellow seam (`_is_seam`), or None."""
+    best = None
+    for x, y, w, h, blob, area in _blobs(mask, min_area, max_area):
+        if (best is None or area > best[5]) and not _is_seam(hsv, x, y, blob, saturation_min):
             best = (x, y, w, h, blob, area)
+    return best
+
+
+def _along(rows: np.ndarray, cols: np.ndarray, velocity) -> bool:
+    """Whether a blob (its pixels' rows and columns) spreads at least as far along `velocity` as across."""
+    direction = np.asarray(velocity, float) / np.hypot(*velocity)
+    along = (cols - cols.mean()) * direction[0] + (rows - rows.mean()) * direction[1]
+    across = (rows - rows.mean()) * direction[0] - (cols - cols.mean()) * direction[1]
+    return float(along @ along) >= float(across @ across)
+
+
+def _blurred_blob(hsv: np.ndarray, detector: BallDetector, width: int, expected_uv, velocity):
+    """The blur test's blob (as _largest_blob's) in `hsv`, a window of an image `width` px wide, for a ball
+    expected at expected_uv (window px) moving at `velocity` (px a frame): of the colour test's hue and
+    value from blur_saturation_min, its most saturated pixel at blur_peak_saturation, of the minimum
+    area to blur_max_area_px, not a seam, centred within blur_gate_px of expected_uv and, from
+    blur_streak_speed_px, spread along the motion (`_along`); the nearest such, or None."""
+    min_area, _, _ = detector.scaled(width)
+    scale = width / REFERENCE_WIDTH
+    max_area, gate = detector.blur_max_area_px * scale**2, detector.blur_gate_px * scale
+    streak = np.hypot(*velocity) >= detector.blur_streak_speed_px * scale
+    mask = cv2.inRange(hsv, (detector.hue_min, detector.blur_saturation_min, detector.value_min),
+                       (detector.hue_max, 255, 255))
+    best, best_distance = None, gate
+    for x, y, w, h, blob, area in _blobs(mask, min_area, max_area):
+        rows, cols = np.nonzero(blob)
+        distance = np.hypot(x + cols.mean() - expected_uv[0], y + rows.mean() - expected_uv[1])
+        if distance <= best_distance and hsv[y + rows, x + cols, 1].max() >= detector.blur_peak_saturation \
+                and (not streak or _along(rows, cols, velocity)) \
+                and not _is_seam(hsv, x, y, blob, detector.saturation_min):
+            best, best_distance = (x, y, w, h, blob, area), distance
     return best
 
 
@@ -173,9 +249,13 @@ def _window(shape: tuple, detector: BallDetector, previous_uv) -> tuple[int, int
     return max(cu - half, 0), max(cv - half, 0), cu + half + 1, cv + half + 1
 
 
-def detect_ball(image_bgr: np.ndarray, detector: BallDetector,
-                previous_uv: tuple[float, float] | None = None) -> tuple[float, float, int] | None:
+def detect_ball(image_bgr: np.ndarray, detector: BallDetector, previous_uv: tuple[float, float] | None = None,
+                velocity: tuple[float, float] | None = None) -> tuple[float, float, int] | None:
     """(u, v, area_px) of the ball in a BGR image, or None; searches around previous_uv when given.
+
+    velocity (px a frame): the tracked ball's, from its last two detections. Given it, and where the
+    colour test finds no ball, the blur test looks in the same window for the ball near previous_uv +
+    velocity.
 
     u, v: pixel coordinates (OpenCV: pixel centres at integers); area_px: the thresholded blob's size.
     """
@@ -186,6 +266,9 @@ def detect_ball(image_bgr: np.ndarray, detector: BallDetector,
     mask = cv2.inRange(hsv, (detector.hue_min, detector.saturation_min, detector.value_min),
                        (detector.hue_max, 255, 255))
     found = _largest_blob(mask, min_area, max_area, hsv, detector.saturation_min)
+    if found is None and previous_uv is not None and velocity is not None:
+        expected = (previous_uv[0] + velocity[0] - x0, previous_uv[1] + velocity[1] - y0)
+        found = _blurred_blob(hsv, detector, image_bgr.shape[1], expected, velocity)
     if found is None:
         return None
     x, y, _, _, blob, area = found
@@ -232,15 +315,18 @@ def _upsampled_centre(image: np.ndarray, reduction: int, found, detector: BallDe
     return u + reduction * x0, v + reduction * y0, area
 
 
-def _ball_at(image: np.ndarray, reduction: int, detector: BallDetector, near_uv) -> tuple | None:
+def _ball_at(image: np.ndarray, reduction: int, detector: BallDetector, near_uv,
+             velocity=None) -> tuple | None:
     """(u, v, area_px) in full-resolution pixels of the ball in an image decoded at 1/reduction, searched
-    around near_uv (full-resolution px) or everywhere, or None. On a reduced image the search takes
-    blobs from CANDIDATE_AREA of the minimum area, and the area is the upsampled blob's."""
+    around near_uv (full-resolution px; with the ball's velocity, full-resolution px a frame: detect_ball)
+    or everywhere, or None. On a reduced image the search takes blobs from CANDIDATE_AREA of the minimum
+    area, and the area is the upsampled blob's."""
     if reduction == 1:
-        return detect_ball(image, detector, near_uv)
+        return detect_ball(image, detector, near_uv, velocity)
     offset = (reduction - 1) / 2
     near = None if near_uv is None else ((near_uv[0] - offset) / reduction, (near_uv[1] - offset) / reduction)
-    found = detect_ball(image, _candidates(detector), near)
+    slower = None if velocity is None else (velocity[0] / reduction, velocity[1] / reduction)
+    found = detect_ball(image, _candidates(detector), near, slower)
     return None if found is None else _upsampled_centre(image, reduction, found, detector)
 
 
@@ -250,10 +336,11 @@ def _candidates(detector: BallDetector) -> BallDetector:
     return replace(detector, min_area_px=detector.min_area_px * CANDIDATE_AREA)
 
 
-def _detect_frame(frame, detector: BallDetector, previous, level: int, reduction: int, shape):
+def _detect_frame(frame, detector: BallDetector, previous, level: int, reduction: int, shape, velocity=None):
     """(ball or None, the decoder's complaint, the reduction the ball was found at) of one frame: around
     `previous` at 1/level when there is one, else everywhere at 1/reduction. Where a reduced image shows
     no ball near the previous one, or a blob below the minimum area, the full-resolution image decides.
+    velocity: the tracked ball's (detect_ball), or None.
     shape: the stream's full-resolution image shape, whose window rows alone are decoded where the
     frame can (CameraFrame.decode_rows); None decodes whole images."""
     scale = reduction if previous is None else level
@@ -264,14 +351,36 @@ def _detect_frame(frame, detector: BallDetector, previous, level: int, reduction
         image, reason = _decoded(frame, scale)
     if reason:
         return None, reason, scale
-    found = _ball_at(image, scale, detector, previous)
+    found = _ball_at(image, scale, detector, previous, velocity)
     lost = found is None and previous is not None
     small = found is not None and found[2] < detector.scaled(image.shape[1] * scale)[0]
     if scale > 1 and (lost or small):
-        near = previous if lost else found[:2]
+        near = previous if lost or velocity is not None else found[:2]  # a tracked ball: its window
         image, reason = _decoded(frame, 1)
-        return (None if reason else detect_ball(image, detector, near)), reason, 1
+        return (None if reason else detect_ball(image, detector, near, velocity)), reason, 1
     return found, "", scale
+
+
+def _track_back(missed, row: int, detector: BallDetector, first_uv, velocity, shape):
+    """(row, (u, v, area_px)) of the balls the blur test finds following a new track back from its first
+    detection first_uv (moving at `velocity` px a frame) through the frames of `missed`, (row, frame) of
+    frames in which no ball was found, latest last, from `row` (the frame before the first detection)
+    back; it stops at the first frame without a ball or not in `missed`. shape: as _detect_frame's (the
+    window's rows alone are decoded where the frame can)."""
+    uv, step = first_uv, (-velocity[0], -velocity[1])
+    for missed_row, frame in reversed(missed):
+        if missed_row != row:
+            return
+        row -= 1
+        rows = None if shape is None else _window(shape, detector, uv)[1::2]
+        image, reason = _decoded(frame, 1, rows)
+        if rows is not None and image is not None and image.shape != shape:  # a frame of another size: whole
+            image, reason = _decoded(frame, 1)
+        ball = None if reason else detect_ball(image, detector, uv, step)
+        if ball is None:
+            return
+        yield missed_row, ball
+        uv, step = ball[:2], (ball[0] - uv[0], ball[1] - uv[1])
 
 
 def detect_stream(frames: Iterable, detector: BallDetector, reduction: int | None = None) -> pd.DataFrame:
@@ -282,21 +391,36 @@ def detect_stream(frames: Iterable, detector: BallDetector, reduction: int | Non
     the first image's width (`stream_reduction`) unless given; 1 searches every frame at full resolution.
     Each frame is searched around the previous frame's detection, the whole frame when there was none;
     a frame searched in a window at full resolution decodes only the window's rows where it can
-    (CameraFrame.decode_rows: JPEG with a restart marker per MCU row, as the twin writes).
+    (CameraFrame.decode_rows: JPEG with a restart marker per MCU row, as the twin writes). A ball tracked
+    with a velocity is also looked for by the blur test (detect_ball), and a new track's first two
+    detections are followed back by it through the frames without a ball before them (`_track_back`).
     A frame whose decode complains (damaged, or no image) is logged, marked decode_ok=False and not
     searched, even where the decoder made an image of it; tracking restarts.
     """
     times, us, vs, areas, decoded = [], [], [], [], []
     previous, level = None, 1  # the last detection (full-resolution px) and the reduction it was found at
+    velocity = None  # px a frame, between the last two detections where they are in successive frames
+    missed = collections.deque(maxlen=detector.track_back_frames)  # (row, frame) of the frames without a ball
     shape = None  # the first image that decodes sets the stream's image shape and reduction
     for frame in frames:
         if shape is None:
             image, _ = frame.decode(1)
             shape = None if image is None else image.shape
             reduction = reduction or (None if image is None else stream_reduction(image.shape[1]))
-        found, reason, level = _detect_frame(frame, detector, previous, level, reduction or 1, shape)
+        found, reason, level = _detect_frame(frame, detector, previous, level, reduction or 1, shape,
+                                             velocity)
         if reason:
             log.warning("frame at %d ns: %s; skipped", frame.time_ns, reason)
+        velocity = None if found is None or previous is None else \
+            (found[0] - previous[0], found[1] - previous[1])
+        if velocity is not None:  # a track's second ball or later: look back before its first
+            for row, ball in _track_back(missed, len(times) - 2, detector, previous, velocity, shape):
+                us[row], vs[row], areas[row] = ball
+            missed.clear()
+        elif reason:
+            missed.clear()
+        elif found is None:
+            missed.append((len(times), frame))
         previous = found[:2] if found is not None else None
         times.append(frame.time_ns)
         decoded.append(not reason)
