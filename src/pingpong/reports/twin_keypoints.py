@@ -107,14 +107,29 @@ def _true_views(camera: Camera, truth_joints: np.ndarray) -> dict:
 def match_people(detections: np.ndarray, true_px: np.ndarray, scale: np.ndarray) -> np.ndarray:
     """(F, K) the index of the true person each detection (F, K, 25, 3) is, -1 for none (false people and
     padding): the nearest by median distance over its reported joints, under MATCH_SHARE of that person's
-    scale (F, P); each true person taken once per frame, nearest first."""
+    scale (F, P); each true person taken once per frame, nearest first. Frame by frame, so in chunks of
+    MATCH_CHUNK frames (arrays that stay in the cache)."""
+    out = np.full(detections.shape[:2], -1)
+    for first in range(0, len(detections), MATCH_CHUNK):
+        chunk = slice(first, first + MATCH_CHUNK)
+        out[chunk] = _match_chunk(detections[chunk], true_px[chunk], scale[chunk])
+    return out
+
+
+MATCH_CHUNK = 2048
+
+
+def _match_chunk(detections: np.ndarray, true_px: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """match_people on a chunk of frames. The median distance is the lower median of the reported joints'
+    distances (the root of the lower median of the squares: the same value, the root being monotonic)."""
     reported = detections[..., 2] > 0
-    dist = np.linalg.norm(detections[:, :, None, :, :2] - true_px[:, None], axis=-1)  # (F, K, P, 25)
-    dist = np.where(reported[:, :, None], dist, np.nan)
+    dx = detections[:, :, None, :, 0] - true_px[:, None, :, :, 0]  # (F, K, P, 25)
+    dy = detections[:, :, None, :, 1] - true_px[:, None, :, :, 1]
+    squared = np.where(reported[:, :, None], dx * dx + dy * dy, np.nan)
     with np.errstate(invalid="ignore"):
-        ordered = np.sort(dist, axis=-1)
-        count = np.isfinite(dist).sum(-1)
-        median = np.take_along_axis(ordered, np.maximum(count - 1, 0)[..., None] // 2, -1)[..., 0]
+        count = np.isfinite(squared).sum(-1)
+        squared.sort(axis=-1)
+        median = np.sqrt(np.take_along_axis(squared, np.maximum(count - 1, 0)[..., None] // 2, -1)[..., 0])
         ok = median < MATCH_SHARE * scale[:, None]
     cost = np.where(ok, median, np.inf)
     out = np.full(detections.shape[:2], -1)
@@ -129,63 +144,81 @@ def match_people(detections: np.ndarray, true_px: np.ndarray, scale: np.ndarray)
     return out
 
 
+def _distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """|a - b| over a last axis of x, y (np.linalg.norm's value: the root of dx dx + dy dy), x and y apart."""
+    dx, dy = a[..., 0] - b[..., 0], a[..., 1] - b[..., 1]
+    return np.sqrt(dx * dx + dy * dy)
+
+
 def camera_errors(camera: Camera, detections: np.ndarray, truth_joints: np.ndarray, names: list[str]) -> dict:
     """One camera's keypoints against the truth of one session: per-joint arrays over the players'
-    matched detections, and the false-people frames.
+    matched detections (the near player's rows, then the far player's), and the false-people frames.
 
     detections (F, K, 25, 3) as read from the JSON, frame by frame with truth_joints (P, F, 25, 3) of the
-    people named in names (the players and any bystander)."""
-    view = _true_views(camera, truth_joints)
-    true_px = np.moveaxis(view["px"], 0, 1)  # (F, P, 25, 2)
-    who = match_people(detections, true_px, view["scale"].T)
+    people named in names (the players and any bystander). Every figure is a frame's, so the frames go in
+    chunks of MATCH_CHUNK (arrays that stay in the cache)."""
     players = [names.index(p) for p in PLAYERS]
-    reported_any = (detections[..., 2] > 0).any(-1)
-    false_frames = (reported_any & ~np.isin(who, players)).any(axis=1)
-    rows = {k: [] for k in ("error", "mirror_error", "reported", "inside", "hidden", "scale", "height",
-                            "apart", "both_clear", "confidence")}
-    for p in players:
-        f, k = np.nonzero(who == p)
-        got = detections[f, k]
-        truth_px = view["px"][p, f]
-        rows["error"].append(np.linalg.norm(got[..., :2] - truth_px, axis=-1))
-        rows["mirror_error"].append(np.linalg.norm(got[..., :2] - truth_px[:, MIRROR], axis=-1))
-        rows["apart"].append(np.linalg.norm(truth_px - truth_px[:, MIRROR], axis=-1))
-        rows["reported"].append(got[..., 2] > 0)
-        rows["confidence"].append(got[..., 2])
-        rows["inside"].append(view["inside"][p, f])
-        rows["hidden"].append(view["hidden"][p, f])
-        clear = view["inside"][p, f] & ~view["hidden"][p, f]
-        rows["both_clear"].append(clear & clear[:, MIRROR])
-        rows["scale"].append(np.repeat(view["scale"][p, f, None], 25, 1))
-        rows["height"].append(np.repeat(view["height"][p, f, None], 25, 1))
-    out = {k: np.concatenate(v) for k, v in rows.items()}
-    out["false_frames"] = false_frames
+    rows = {p: {k: [] for k in ("error", "mirror_error", "reported", "inside", "hidden", "scale", "height",
+                                "apart", "both_clear", "confidence")} for p in players}
+    false_frames = []
+    for first in range(0, len(detections), MATCH_CHUNK):
+        chunk = slice(first, first + MATCH_CHUNK)
+        false_frames.append(_chunk_errors(camera, detections[chunk], truth_joints[:, chunk], players, rows))
+    out = {k: np.concatenate([part for p in players for part in rows[p][k]]) for k in rows[players[0]]}
+    out["false_frames"] = np.concatenate(false_frames)
     out["frames"] = len(detections)
     return out
 
 
-def _apart(e: dict) -> np.ndarray:
+def _chunk_errors(camera: Camera, detections: np.ndarray, truth_joints: np.ndarray, players: list[int],
+                  rows: dict) -> np.ndarray:
+    """camera_errors on a chunk of frames: appends each player's arrays to rows[player]; returns the
+    chunk's false-people frames."""
+    view = _true_views(camera, truth_joints)
+    true_px = np.moveaxis(view["px"], 0, 1)  # (F, P, 25, 2)
+    who = match_people(detections, true_px, view["scale"].T)
+    reported_any = (detections[..., 2] > 0).any(-1)
+    for p in players:
+        f, k = np.nonzero(who == p)
+        got = detections[f, k]
+        truth_px = view["px"][p, f]
+        mine = rows[p]
+        mine["error"].append(_distance(got, truth_px))
+        mine["mirror_error"].append(_distance(got, truth_px[:, MIRROR]))
+        mine["apart"].append(_distance(truth_px, truth_px[:, MIRROR]))
+        mine["reported"].append(got[..., 2] > 0)
+        mine["confidence"].append(got[..., 2])
+        mine["inside"].append(view["inside"][p, f])
+        mine["hidden"].append(view["hidden"][p, f])
+        clear = view["inside"][p, f] & ~view["hidden"][p, f]
+        mine["both_clear"].append(clear & clear[:, MIRROR])
+        mine["scale"].append(np.repeat(view["scale"][p, f, None], 25, 1))
+        mine["height"].append(np.repeat(view["height"][p, f, None], 25, 1))
+    return (reported_any & ~np.isin(who, players)).any(axis=1)
+
+
+def _apart(e: dict, ids=slice(None)) -> np.ndarray:
     """Where a swap can be told from noise: a sided joint in plain view, as its other side, the two far
-    apart in the image."""
-    return SIDED & e["both_clear"] & (e["apart"] > SWAP_APART_SIGMAS * COCO_SIGMAS * e["scale"])
+    apart in the image. e's per-joint arrays hold the joints ids (all 25 by default)."""
+    return SIDED[ids] & e["both_clear"] & (e["apart"] > SWAP_APART_SIGMAS * COCO_SIGMAS[ids] * e["scale"])
 
 
-def _swapped(e: dict) -> np.ndarray:
-    return _apart(e) & e["reported"] & (e["mirror_error"] < e["error"])
+def _swapped(e: dict, apart: np.ndarray) -> np.ndarray:
+    return apart & e["reported"] & (e["mirror_error"] < e["error"])
 
 
 def joint_rows(per_camera: list[dict], errors: KeypointErrors) -> list[dict]:
     """One row per joint group over every camera: the 2D error of plain-view and hidden joints, misses and
-    swaps, beside COCO's sigma and the error the configured detector should make."""
-    e = {k: np.concatenate([c[k] for c in per_camera]) for k in per_camera[0] if k not in ("false_frames",
-                                                                                           "frames")}
-    swapped = _swapped(e)
+    swaps, beside COCO's sigma and the error the configured detector should make. Each group's joints are
+    taken out of every camera's arrays before they are joined (a twelfth of the data a group)."""
     rows = []
     for group, joints in JOINT_GROUPS.items():
         ids = [BODY25.index(j) for j in joints]
-        sel = np.zeros(25, bool)
-        sel[ids] = True
-        inside = e["inside"] & sel
+        e = {k: np.concatenate([c[k][:, ids] for c in per_camera]) for k in per_camera[0]
+             if k not in ("false_frames", "frames")}
+        apart = _apart(e, ids)
+        swapped = _swapped(e, apart)
+        inside = e["inside"]
         clear = inside & e["reported"] & ~swapped & ~e["hidden"]
         hidden = inside & e["reported"] & ~swapped & e["hidden"]
         sigma = float(COCO_SIGMAS[ids[0]])
@@ -205,7 +238,7 @@ def joint_rows(per_camera: list[dict], errors: KeypointErrors) -> list[dict]:
             "expected_miss_visible_pct": 100 * errors.miss_rate,
             "miss_hidden_pct": 100 * _share(~e["reported"][inside & e["hidden"]]),
             "expected_miss_hidden_pct": 100 * errors.hidden_miss,
-            "swap_pct": 100 * _share(swapped[inside & e["reported"] & _apart(e)]),
+            "swap_pct": 100 * _share(swapped[inside & e["reported"] & apart]),
             "expected_swap_pct": 100 * expected_swap_share(errors) if SWAPPED_JOINTS[ids[0]] else np.nan,
             "n": int(inside.sum())})
     return rows
@@ -225,10 +258,11 @@ def camera_rows(cams: list[str], per_camera: list[dict]) -> list[dict]:
         mine = [c for name, c in zip(cams, per_camera, strict=True) if name == cam]
         e = {k: np.concatenate([c[k] for c in mine]) for k in mine[0] if k not in ("false_frames", "frames")}
         false = np.concatenate([c["false_frames"] for c in mine])
+        apart = _apart(e)
         rows.append({"camera": cam, "frames": len(false), "false_people_frames_pct": 100 * false.mean(),
                      "miss_pct": 100 * _share(~e["reported"][e["inside"]]),
                      "hidden_pct": 100 * _share(e["hidden"][e["inside"]]),
-                     "swap_pct": 100 * _share(_swapped(e)[e["inside"] & e["reported"] & _apart(e)])})
+                     "swap_pct": 100 * _share(_swapped(e, apart)[e["inside"] & e["reported"] & apart])})
     return rows
 
 

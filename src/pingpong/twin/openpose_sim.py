@@ -132,9 +132,9 @@ def _bounds(px: np.ndarray, depth: np.ndarray, width2: np.ndarray) -> tuple[np.n
     can_cover = depth > 0.1
     reach = np.sqrt(np.fmax.reduce(np.where(can_cover, width2, np.nan), axis=-1)) * (1 + 1e-9) + 1e-9
     covering = np.where(can_cover[..., None], px, np.nan)
-    box = np.stack([np.fmin.reduce(px, axis=-2), np.fmax.reduce(px, axis=-2)], axis=-2)
-    cover_box = np.stack([np.fmin.reduce(covering, axis=-2) - reach[..., None],
-                          np.fmax.reduce(covering, axis=-2) + reach[..., None]], axis=-2)
+    box = np.stack(joint_extent(px), axis=-2)
+    cover_low, cover_high = joint_extent(covering)
+    cover_box = np.stack([cover_low - reach[..., None], cover_high + reach[..., None]], axis=-2)
     nearest = np.fmin.reduce(np.where(can_cover, depth, np.nan), axis=-1)
     return box, cover_box, nearest, np.fmax.reduce(depth, axis=-1)
 
@@ -143,23 +143,34 @@ def self_hidden(px: np.ndarray, depth: np.ndarray, f: float) -> np.ndarray:
     """(..., 25) True where a joint lies behind the person's own trunk from the camera: its pixel within
     the trunk's projected half width of the neck to mid-hip segment, and deeper than the trunk's axis
     there by more than TRUNK_HALF_DEPTH (a hand in front of the chest seen from behind, the far shoulder
-    seen from the side). px (..., 25, 2), depth (..., 25)."""
-    a, b = px[..., TRUNK_AXIS[0], :], px[..., TRUNK_AXIS[1], :]
-    ab = (b - a)[..., None, :]
+    seen from the side). px (..., 25, 2), depth (..., 25). x and y apart (sums over a last axis of 2 cost
+    more than the arithmetic; the same values)."""
+    x, y = px[..., 0], px[..., 1]
+    ax, ay = x[..., TRUNK_AXIS[0], None], y[..., TRUNK_AXIS[0], None]
+    abx, aby = x[..., TRUNK_AXIS[1], None] - ax, y[..., TRUNK_AXIS[1], None] - ay
     with np.errstate(invalid="ignore", divide="ignore"):
-        t = np.clip(np.sum((px - a[..., None, :]) * ab, -1) / np.sum(ab * ab, -1), 0.0, 1.0)
-        dist = np.linalg.norm(px - (a[..., None, :] + t[..., None] * ab), axis=-1)
+        t = np.clip(((x - ax) * abx + (y - ay) * aby) / (abx * abx + aby * aby), 0.0, 1.0)
+        dx, dy = x - (ax + t * abx), y - (ay + t * aby)
+        dist = np.sqrt(dx * dx + dy * dy)
         axis_depth = depth[..., TRUNK_AXIS[0], None] * (1 - t) + depth[..., TRUNK_AXIS[1], None] * t
         hidden = (dist < f * TRUNK_HALF_WIDTH / axis_depth) & (depth > axis_depth + TRUNK_HALF_DEPTH)
     hidden[..., list(TRUNK_AXIS)] = False
     return hidden
 
 
+def joint_extent(px: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high) (..., 2) of joints (..., 25, 2) over the joints, NaN ignored (all NaN: NaN). The joints
+    axis made the last and contiguous first: a reduction along it runs 5x faster than across it."""
+    by_axis = np.ascontiguousarray(np.moveaxis(px, -1, -2))  # (..., 2, 25)
+    return np.fmin.reduce(by_axis, axis=-1), np.fmax.reduce(by_axis, axis=-1)
+
+
 def object_scale(px: np.ndarray) -> np.ndarray:
     """(...,) COCO's object scale s = sqrt(area) of people's projected joints (..., 25, 2), px: the root of
     AREA_PER_BOX of their bounding box; NaN where a person is absent."""
     with np.errstate(invalid="ignore"):
-        extent = np.fmax.reduce(px, axis=-2) - np.fmin.reduce(px, axis=-2)
+        low, high = joint_extent(px)
+        extent = high - low
         return np.sqrt(AREA_PER_BOX * extent[..., 0] * extent[..., 1])
 
 
