@@ -21,6 +21,7 @@ from pingpong.reports.twin_keypoints import (
     expected_swap_share,
     joint_rows,
     read_twin_keypoints,
+    ronchi_perona_rows,
 )
 from pingpong.twin.openpose_sim import (
     OCCLUDER_RADIUS,
@@ -134,7 +135,7 @@ def walker():
     return camera, joints
 
 
-def _measure(camera, joints, errors: KeypointErrors):
+def _per_camera(camera, joints, errors: KeypointErrors):
     truth = np.stack([np.full_like(joints, np.nan), joints])  # nobody near, the walker far
     rng, carry, frames = np.random.default_rng(3), Carry(), []
     for first in range(0, N_FRAMES, 1000):
@@ -142,7 +143,30 @@ def _measure(camera, joints, errors: KeypointErrors):
     detections = np.zeros((N_FRAMES, max(map(len, frames)), 25, 3))
     for f, people in enumerate(frames):
         detections[f, :len(people)] = people
-    per_camera = [camera_errors(camera, detections, truth, ["near", "far"])]
+    return [camera_errors(camera, detections, truth, ["near", "far"])]
+
+
+def test_ronchi_and_peronas_classes_of_the_twins_errors(walker):
+    """Their definitions on the twin's keypoints: a detector without errors is all good; with swaps and
+    misses, inversions and misses appear and grow with their rates, and no keypoint is another person's."""
+    exact = default_keypoint_errors(sigma_scale=0.0, exposure_s=0.0, swap_rate=0.0, miss_rate=0.0,
+                                    hidden_miss=0.0)
+    table = pd.DataFrame(ronchi_perona_rows(_per_camera(*walker, exact), exact)).set_index(
+        "error (Ronchi & Perona 2017)")
+    assert table.loc["good", "twin_pct"] == 100 and table["twin_pct"].sum() == pytest.approx(100)
+    rates = {}
+    for swap, miss in ((0.01, 0.02), (0.05, 0.1)):
+        errors = default_keypoint_errors(swap_rate=swap, miss_rate=miss)
+        table = pd.DataFrame(ronchi_perona_rows(_per_camera(*walker, errors), errors)).set_index(
+            "error (Ronchi & Perona 2017)")["twin_pct"]
+        assert table.sum() == pytest.approx(100) and table["swap"] == 0 and table["miss"] >= 100 * miss
+        rates[swap] = table
+    assert 0 < rates[0.01]["inversion"] < rates[0.05]["inversion"]
+    assert rates[0.01]["miss"] < rates[0.05]["miss"]
+
+
+def _measure(camera, joints, errors: KeypointErrors):
+    per_camera = _per_camera(camera, joints, errors)
     return pd.DataFrame(joint_rows(per_camera, errors)).set_index("joint"), camera_rows(["cam2"], per_camera)
 
 

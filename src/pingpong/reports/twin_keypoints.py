@@ -244,6 +244,57 @@ def joint_rows(per_camera: list[dict], errors: KeypointErrors) -> list[dict]:
     return rows
 
 
+# Ronchi & Perona 2017's localization errors, as their released code classes a matched detection's keypoints
+# (coco-analyze, pycocotools/cocoanalyze.py, COCOanalyze._find_kpt_errors): the keypoint similarity to a true
+# keypoint is ks = exp(-d^2 / (2 s^2 (2 sigma)^2)) (s^2 the person's area, sigma COCO's); of every true
+# keypoint in the image, the own, its left/right counterpart and other people's, the most similar decides:
+# good (own, ks > 0.85: within 1.14 sigma s), jitter (own, 0.5 <= ks < 0.85: 1.14-2.35 sigma s), inversion
+# (the own counterpart, ks >= 0.5), swap (another person's, ks >= 0.5), miss (ks < 0.5 to all: more than
+# 2.35 sigma s from every one). Over annotated keypoints (visible or occluded); ties go to the own keypoint.
+RP_GOOD, RP_JITTER = 0.85, 0.5
+COCO_KEYPOINTS = [BODY25.index(j) for j in ("Nose", "LEye", "REye", "LEar", "REar", "LShoulder", "RShoulder",
+                                            "LElbow", "RElbow", "LWrist", "RWrist", "LHip", "RHip", "LKnee",
+                                            "RKnee", "LAnkle", "RAnkle")]
+RONCHI_PERONA_2017 = ("Ronchi M. R., Perona P.: Benchmarking and Error Diagnosis in Multi-Instance Pose "
+                      "Estimation. ICCV 2017, arXiv 1707.05388, Fig. 6 (the CMU team's bottom-up detector, "
+                      "OpenPose's, on COCO)")
+NOT_RETRIEVED = "no published figure (Fig. 6 not retrieved)"
+
+
+def ronchi_perona_rows(per_camera: list[dict], errors: KeypointErrors) -> list[dict]:
+    """The players' COCO keypoints inside the image (every camera) classed by Ronchi & Perona's definitions
+    (good, jitter, inversion, swap, miss: shares of the keypoints, %), each beside the twin's error it
+    maps to and the configured rate behind it, and the published figure (none retrieved). A keypoint
+    the JSON leaves at 0, 0, 0 lies far from every joint: a miss, as OpenPose's would in their evaluation.
+    The twin's detector takes no joint from another person (swap: none by construction)."""
+    e = {k: np.concatenate([c[k][:, COCO_KEYPOINTS] for c in per_camera])
+         for k in ("error", "mirror_error", "scale", "inside")}
+    inside = e["inside"]
+    kappa2 = (2 * COCO_SIGMAS[COCO_KEYPOINTS]) ** 2
+    with np.errstate(invalid="ignore", over="ignore"):
+        own = np.exp(-e["error"] ** 2 / (2 * e["scale"] ** 2 * kappa2))[inside]
+        other_side = np.exp(-e["mirror_error"] ** 2 / (2 * e["scale"] ** 2 * kappa2))[inside]
+    best = np.fmax(own, other_side)
+    shares = {"good": (own >= other_side) & (own > RP_GOOD),
+              "jitter": (own >= other_side) & (own >= RP_JITTER) & (own < RP_GOOD),
+              "inversion": (other_side > own) & (other_side >= RP_JITTER),
+              "swap": np.zeros(len(own), bool), "miss": best < RP_JITTER}
+    limb = f"swap_rate {errors.swap_rate:g} x swap_frames {errors.swap_frames:g} / {len(LIMB_SWAPS)} limbs"
+    twin = {
+        "good": ("a joint within 1.14 COCO sigmas of s of its truth", f"sigma_scale {errors.sigma_scale:g}"),
+        "jitter": ("the 2D noise (COCO's sigmas of s), blur and the hidden joints' larger noise",
+                   f"sigma_scale {errors.sigma_scale:g}, hidden_scale {errors.hidden_scale:g}, "
+                   f"exposure_s {errors.exposure_s:g}"),
+        "inversion": ("a left/right swap of an arm, leg or foot",
+                      f"{limb} = {100 * expected_swap_share(errors):.2g} % of a limb joint's frames"),
+        "swap": ("none: the twin's detector never takes another person's joint", "none"),
+        "miss": ("a lost joint (0, 0, 0): visible ones at miss_rate, hidden ones at hidden_miss",
+                 f"miss_rate {errors.miss_rate:g}, hidden_miss {errors.hidden_miss:g}")}
+    return [{"error (Ronchi & Perona 2017)": kind, "twin_pct": 100 * _share(mask),
+             "published_pct": NOT_RETRIEVED, "the twin's error": twin[kind][0],
+             "config (twin.keypoint_errors)": twin[kind][1], "n": len(own)} for kind, mask in shares.items()]
+
+
 def expected_swap_share(errors: KeypointErrors) -> float:
     """The share of frames a given limb joint is swapped in: swaps start at swap_rate per detection, last
     swap_frames on average and take one of the LIMB_SWAPS limbs (overlaps neglected)."""
