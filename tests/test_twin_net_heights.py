@@ -121,6 +121,13 @@ def test_net_table_rows_shares_and_the_ball_gun_column():
     assert bounce["twin"] == pytest.approx(7.0) and bounce["real"] == pytest.approx(5.0)
     assert "Hodges" in table.loc[(STATISTICS["net_height"][0], "lob"), "source"]
     assert table.loc[(STATISTICS["net_speed"][0], "drive"), "published (human play)"] == NOT_FOUND
+    # no stroke's net height is measured in print but topspin defence's and the lob's coaching figures: the
+    # others' aimed ranges are labelled the project's choice
+    low, high = STROKES["drive"].net_height
+    assert table.loc[(STATISTICS["net_height"][0], "drive"), "published (human play)"] == (
+        f"no published measurement found: the twin's aim, {low:.2f}-{high:.2f} m over the net, is the "
+        "project's choice")
+    assert "project's choice" not in table.loc[(STATISTICS["net_height"][0], "lob"), "published (human play)"]
 
 
 def test_tiny_run_reports_the_net_section(tiny_run):

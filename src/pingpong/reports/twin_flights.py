@@ -5,11 +5,15 @@ import numpy as np
 import pandas as pd
 
 from pingpong.frames import FRAME_NS, NET_HEIGHT
-from pingpong.reports.published_shots import published_for
+from pingpong.reports.published_shots import NOT_FOUND, published_for
 from pingpong.reports.twin_shots import STATISTICS, STROKES, percentiles
 from pingpong.twin.realdata import flight_stats
+from pingpong.twin.repertoire import STROKES as STROKE_KINDS
 
 HIGH_OVER_NET = 0.25  # m over the net's top edge: issue 41's high ball (>= 8 % of good shots)
+# The strokes whose net-crossing heights no published measurement gives (pingpong.twin.repertoire's doc: the
+# search and what it found): their aimed ranges are the project's choice, and the net table says so.
+CHOSEN_NET_HEIGHTS = ("drive", "loop", "sidespin", "push", "flick", "block", "smash")
 NET_COLUMNS = ("statistic", "stroke", "n", "unit", "twin_p10", "twin", "twin_p90", "real_p10", "real",
                "real_p90", "published (human play)", "source")
 
@@ -69,6 +73,10 @@ def _net_row(statistic: str, stroke: str, twin, real=(), share: bool = False) ->
         t10, t50, t90 = percentiles(twin)
     r10, r50, r90 = percentiles(real) if len(real) else (np.nan,) * 3
     figure, source = published_for(statistic, stroke)
+    if statistic == "net_height" and stroke in CHOSEN_NET_HEIGHTS:
+        low, high = STROKE_KINDS[stroke].net_height
+        found = "no published measurement found" if figure == NOT_FOUND else f"{figure}; no height measured"
+        figure = f"{found}: the twin's aim, {low:.2f}-{high:.2f} m over the net, is the project's choice"
     return dict(zip(NET_COLUMNS, (label, stroke, int(np.isfinite(twin).sum()), unit, t10, t50, t90, r10, r50,
                                   r90, figure, source), strict=True))
 

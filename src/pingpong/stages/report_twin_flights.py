@@ -36,7 +36,8 @@ net-crossing figures: the speed before the first bounce (both measured by `fligh
 them instead. No published percentiles of net-crossing heights or speeds at the net were found; issue 41
 measured real rallies of recordings this project has not seen at a p10-p90 spread of ~24 cm. The twin's
 stroke heights are aimed ranges (`pingpong.twin.repertoire.STROKES`, net_height) that the flight meets
-or exceeds."""
+or exceeds; where no published measurement gives a stroke's height, the published column says so and
+labels the aimed range the project's choice (fish and lob: coaching texts' figures)."""
 
 
 def main(ctx):

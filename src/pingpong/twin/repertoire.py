@@ -43,9 +43,13 @@ shot crossed 5-9 cm over the net, p10-p90, where real rallies spread over ~24 cm
 - the smash answers a high ball (`SMASH_HEIGHT`; "hit a lob above eye level", L. Hodges, "Smashing
   Lobs", Tip of the Week, 2019-09-09);
 - the slow, spinny loop arcs "a little higher than usual, making it go deep" (L. Hodges, "Super Spinny
-  Slow Loops", tabletenniscoaching.com, 2013-02-04): loops are aimed 6-32 cm over the net. No
-  source at hand gave heights in numbers for drives, loops, pushes, flicks, blocks or smashes: their
-  ranges (a few cm to 15-25 cm over the tape) are the project's choice.
+  Slow Loops", tabletenniscoaching.com, 2013-02-04): loops are aimed 6-32 cm over the net.
+- drives, loops, sidespin strokes, pushes, flicks, blocks and smashes: no published measurement of their
+  height over the net was found (searched 2026-12-05: multi-camera studies of rally trajectories and ITTF
+  analyses, whose abstracts give no heights; coaching texts; Schneider et al.'s simulations of ball
+  trajectories, Int. J. Comp. Sci. Sport 2013 and Appl. Sci. 2018, model the ball, not players' choices):
+  their ranges (a few cm to 15-32 cm over the tape) are the project's choice, and twin_vs_real.md's net
+  section labels them so beside the twin's p10 / median / p90.
 
 Lanes (the hitter's own frame, after the dataset's mirror: left x < 0, right x > 0 seen from the robot)
 are weighted towards the right as in the paper's data (Table 2: right 45 %, centre 36 %, left 18 %).
