@@ -494,3 +494,27 @@ def test_a_ball_at_the_minimum_area_is_measured_on_the_full_resolution_image():
     assert frame.decodes == [1, 2, 1]
     assert full["detected"][0] and full["area_px"][0] == 36
     pd.testing.assert_frame_equal(reduced, full)
+
+
+def test_a_tracked_fast_far_ball_is_found_by_the_blur_test_on_the_half_scale_decode():
+    # the 480 px streak of test_a_far_fast_ball_is_found_by_the_blur_test_... at 1440 wide: radius 5.4 px,
+    # 36 px a frame; three sharp frames start the track, then five blurred as the twin blurs (4 ms of 10)
+    velocity = np.array([36.0, 12.0])
+    centres = [np.array([400.4, 500.6]) + k * velocity for k in range(8)]
+    frames = []
+    for k, centre in enumerate(centres):
+        image = np.tile(np.asarray(render.hsv_to_bgr(*render.FLOOR_HSV), np.float32), (TALL, WIDE, 1))
+        offsets = np.linspace(-0.2, 0.2, 5) if k >= 3 else [0.0]
+        blurred = np.zeros_like(image)
+        for t in offsets:
+            layer = image.copy()
+            draw_disc(layer, *(centre + t * velocity), 5.4, render.BALL_BGR)
+            blurred += layer / len(offsets)
+        noisy = to_uint8(blurred + np.random.default_rng(k).normal(0, 2.0, image.shape))
+        frames.append(Counted(CameraFrame(k, render.encode_jpeg(noisy, 90))))
+    colour_alone = detect_stream([f.frame for f in frames], COLOUR_TEST_ALONE)
+    assert colour_alone["detected"].tolist() == [True] * 3 + [False] * 5
+    out = detect_stream(frames, BallDetector())
+    assert out["detected"].all()
+    assert np.hypot(*(out[["u", "v"]].to_numpy() - centres).T).max() < 0.25  # measured 0.13
+    assert [f.decodes for f in frames] == [[1, 2]] + [[2]] * 7  # the half-scale decode alone
