@@ -5,10 +5,11 @@ Why these knobs (measured on the default run of fb04da0, 411 training and calibr
 under the paper's robot and timing): with a perfect ball our servo hits centre 87 %, left 68 %, right 58 %
 (the paper: 74, 59, 59), and its side misses are reach misses: given the true strike point at the first
 servo goal (t = +10) the robot still misses 30 % of left and 37 % of right balls, 8-63 cm away, mostly
-fast balls (strike 0.38 s after the hit on average, against 0.69 s for the ones it reaches). Sensing
-noise costs every region alike (5 mm: centre 77, left 56, right 45), so no sensing knob brings the centre
-down to 74 % and keeps the sides at 59 %: the paper's servo loses centre balls to its estimate and keeps
-more side balls than our robot can reach. The knobs therefore act on two things:
+fast balls (strike 0.38 s after the hit on average, against 0.68 s for the ones it reaches;
+analysis/table2_misses.py). Sensing noise costs every region alike (5 mm: centre 77, left 56, right 45),
+so no sensing knob brings the centre down to 74 % and keeps the sides at 59 %: the paper's servo loses
+centre balls to its estimate and keeps more side balls than our robot can reach.
+The knobs therefore act on two things:
   - the servo's estimate: the seen ball's noise (regimes.Sensing; dropout and delay as well, if the config
     lists values) and the servo fit (the paper's two quadratics by default: it is the paper's method);
   - the reach: the base's top speed (the side balls' ceiling; the centre's need no base) and where the
