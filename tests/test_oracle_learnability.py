@@ -7,7 +7,7 @@ import pandas as pd
 from pingpong.frames import N_INPUT
 from pingpong.reports.uncertainty_verdict import _row_spearman
 from pingpong.stages.report_oracle_learnability import SHARE_BAR, estimator_shares
-from pingpong.uncertainty.learnability import fit_on_oracle
+from pingpong.uncertainty.learnability import error_matrix, fit_on_oracle
 
 
 def test_a_net_trained_on_the_oracle_learns_a_std_the_inputs_carry():
@@ -33,3 +33,13 @@ def test_shares_of_the_ceiling_and_the_bar():
     assert np.allclose(out["share_of_ceiling"], [0.9, 0.9, 0.4]) and SHARE_BAR == 0.8
     # a: every bar; b: coverage 5 points over nominal; c: a share of 0.4
     assert out["meets_bar"].tolist() == [True, False, False]
+
+
+def test_error_matrix_places_each_hits_frames_of_the_final_model():
+    dataset = pd.DataFrame({"session": ["s00", "s00"], "rally": [1, 2], "hit": [0, 3]})
+    predictions = pd.DataFrame({"model": ["final", "final", "ball_only"], "session": "s00",
+                                "rally": [2, 1, 1], "hit": [3, 0, 0], "frames_before_hit": [0, 30, 0],
+                                "abs_error": [0.2, 0.1, 9.0]})
+    errors = error_matrix(dataset, predictions)
+    assert errors.shape == (2, 31) and np.isfinite(errors).sum() == 2
+    assert errors[0, 0] == 0.1 and errors[1, 30] == 0.2  # t = -30 first; the ball-only model left out

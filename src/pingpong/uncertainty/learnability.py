@@ -4,7 +4,9 @@ A small GRU (the anticipation stack with one output) is trained on the training 
 log std as its target, the truth no estimator may see; its within-frame Spearman with the oracle std on the
 test hits is what the inputs and this many hits allow. An estimator that must learn the std from single
 draws of the model's error can do no better than this supervised net with the same inputs and hits: the
-uncertainty verdict is read against it (issue 38's bar: the best estimator at >= 0.8 of it).
+uncertainty verdict is read against it (issue 38's bar: the best estimator at >= 0.8 of it). The same net
+trained on the model's own absolute errors (out of fold on the training hits: one draw per hit and frame,
+what every estimator learns from) shows how much of the ceiling single draws leave within reach.
 """
 
 import numpy as np
@@ -29,6 +31,17 @@ def oracle_matrix(dataset: pd.DataFrame, rows: pd.DataFrame) -> np.ndarray:
         rows[[*HIT_KEYS, "frames_before_hit", "oracle_std_x"]])
     out = np.full((len(dataset), 31), np.nan)
     out[at["index"].to_numpy(), 30 - at["frames_before_hit"].to_numpy()] = at["oracle_std_x"].to_numpy()
+    return out
+
+
+def error_matrix(dataset: pd.DataFrame, predictions: pd.DataFrame) -> np.ndarray:
+    """(hits, 31) the final model's absolute strike error (m) of each dataset hit at t = -30 .. 0 (the
+    training hits' out of fold), NaN where it has none."""
+    final = predictions[predictions["model"] == "final"]
+    at = dataset[HIT_KEYS].reset_index(drop=True).reset_index().merge(
+        final[[*HIT_KEYS, "frames_before_hit", "abs_error"]])
+    out = np.full((len(dataset), 31), np.nan)
+    out[at["index"].to_numpy(), 30 - at["frames_before_hit"].to_numpy()] = at["abs_error"].to_numpy()
     return out
 
 
