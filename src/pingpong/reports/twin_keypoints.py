@@ -64,7 +64,8 @@ def read_twin_keypoints(folder, basename: str, n_frames: int) -> np.ndarray:
         raise ValueError(f"{folder}: {len(listed)} keypoints files, expected {basename}'s frames "
                          f"0..{n_frames - 1} ({len(set(names) - listed)} missing, "
                          f"{len(listed - set(names))} others)")
-    texts = [_read_bytes(os.path.join(folder, name)) for name in names]
+    prefix = os.path.join(folder, "")
+    texts = [_read_bytes(prefix + name) for name in names]
     counts = np.array([text.count(b'"pose_keypoints_2d"') for text in texts])
     people = POSE_VALUES.findall(b"\n".join(texts))
     values = np.fromstring(b",".join(people).decode(), sep=",") if people else np.zeros(0)
@@ -88,7 +89,7 @@ def _read_bytes(path: str) -> bytes:
             chunks.append(os.read(fd, 1 << 16))
     finally:
         os.close(fd)
-    return b"".join(chunks)
+    return chunks[0] if len(chunks) == 1 else b"".join(chunks)
 
 
 def _true_views(camera: Camera, truth_joints: np.ndarray) -> dict:
@@ -303,18 +304,31 @@ def expected_swap_share(errors: KeypointErrors) -> float:
 
 def camera_rows(cams: list[str], per_camera: list[dict]) -> list[dict]:
     """Per camera: the share of frames with a false person (someone matched to no player), of the
-    players' joints missed and swapped."""
+    players' joints missed and swapped. Shares as counts over every session of the camera (the same
+    values as the mean of the joined arrays, without joining them)."""
     rows = []
     for cam in sorted(set(cams)):
         mine = [c for name, c in zip(cams, per_camera, strict=True) if name == cam]
-        e = {k: np.concatenate([c[k] for c in mine]) for k in mine[0] if k not in ("false_frames", "frames")}
-        false = np.concatenate([c["false_frames"] for c in mine])
-        apart = _apart(e)
-        rows.append({"camera": cam, "frames": len(false), "false_people_frames_pct": 100 * false.mean(),
-                     "miss_pct": 100 * _share(~e["reported"][e["inside"]]),
-                     "hidden_pct": 100 * _share(e["hidden"][e["inside"]]),
-                     "swap_pct": 100 * _share(_swapped(e, apart)[e["inside"] & e["reported"] & apart])})
+        counts = np.sum([_camera_counts(c) for c in mine], axis=0)
+        frames, false, inside, missed, hidden, separable, swapped = (int(n) for n in counts)
+        rows.append({"camera": cam, "frames": frames, "false_people_frames_pct": 100 * _ratio(false, frames),
+                     "miss_pct": 100 * _ratio(missed, inside), "hidden_pct": 100 * _ratio(hidden, inside),
+                     "swap_pct": 100 * _ratio(swapped, separable)})
     return rows
+
+
+def _camera_counts(e: dict) -> list[int]:
+    """One camera-session's counts for camera_rows: frames, frames with a false person, joints inside the
+    image, of them missed and hidden, reported and separable from their other side, of them swapped."""
+    apart = _apart(e)
+    separable = e["inside"] & e["reported"] & apart
+    return [len(e["false_frames"]), int(e["false_frames"].sum()), int(e["inside"].sum()),
+            int((~e["reported"] & e["inside"]).sum()), int((e["hidden"] & e["inside"]).sum()),
+            int(separable.sum()), int((_swapped(e, apart) & separable).sum())]
+
+
+def _ratio(count: int, total: int) -> float:
+    return count / total if total else np.nan
 
 
 def _median(x: np.ndarray) -> float:
