@@ -32,6 +32,7 @@ rule report_summary:
         curation_accuracy=["reports/tables/curation_accuracy.csv"] if TWIN_ONLY else [],
         twin_vs_real=["reports/tables/twin_vs_real.csv"] if TWIN_ONLY else [],
         twin_keypoints=["reports/tables/twin_keypoints.csv"] if TWIN_ONLY else [],
+        uncertainty_learnability=["reports/tables/uncertainty_learnability.csv"] if TWIN_ONLY else [],
         robot_regimes="reports/tables/robot_regimes.csv",
         robot_regime_calibration="reports/tables/robot_regime_calibration.csv",
         robot_risk_control=["reports/tables/robot_risk_control.csv"] if ROBOT["estimator"] else [],

@@ -28,7 +28,7 @@ CONTROLLERS = {  # robot.csv's controllers, in the order of the paper's Tables 2
 
 # tables a run may lack: the twin's (a lab run has none), risk control's (no estimator configured)
 EXTRA_TABLES = ("twin_vs_real", "twin_keypoints", "robot_regimes", "robot_regime_calibration",
-                "robot_risk_control")
+                "robot_risk_control", "uncertainty_learnability")
 
 
 class SummaryError(ValueError):
@@ -128,6 +128,20 @@ def uncertainty_line(verdict: pd.DataFrame) -> str:
     return line + f"; {meets} of {len(verdict)} estimators meet every bar"
 
 
+def learnability_line(table: pd.DataFrame) -> str:
+    """The learnability ceiling (a net trained on the oracle std itself), the same net trained on the model's
+    errors, and the best estimator's share of the ceiling (uncertainty_learnability.md)."""
+    _require(table, "uncertainty_learnability", ["kind", "spearman_oracle_1_20", "low95", "high95",
+                                                 "share_of_ceiling", "name"])
+    rows = table.set_index("kind")
+    best = table[table["kind"] == "estimator"].sort_values("spearman_oracle_1_20").iloc[-1]
+    labels = (("a net trained on the oracle std itself", "ceiling"),
+              ("on the model's errors", "single draws"))
+    text = [f"{label} {rows.loc[kind, 'spearman_oracle_1_20']:.2f} (95 % {rows.loc[kind, 'low95']:.2f} to "
+            f"{rows.loc[kind, 'high95']:.2f})" for label, kind in labels]
+    return "; ".join(text) + f"; the best estimator ({best['name']}) at {best.share_of_ceiling:.2f} of it"
+
+
 def rejections(curation: pd.DataFrame) -> str:
     """The candidates each curation rule rejected, in the rules' order, those with any."""
     rejected = curation[(curation["decision"] != "kept") & (curation["candidates"] > 0)]
@@ -192,12 +206,13 @@ def regime_rows(regimes: pd.DataFrame) -> list[tuple[str, str, str]]:
 
 
 def calibrated_regime_rows(calibration: pd.DataFrame) -> list[tuple[str, str, str]]:
-    """Servoing alone in each regime calibrated to the paper's Table 2, by region, beside the paper's."""
+    """Servoing alone in each regime calibrated to the paper's Table 2, by region (hit rate with its 95 %
+    Clopper-Pearson interval), beside the paper's."""
     rows = []
     for regime, table in calibration.groupby("regime", sort=False):
-        parts = [f"{r.region} {r.hit_pct:.0f} % (paper {r.paper_hit_pct:.0f} %), "
-                 f"{r.end_distance_mean_cm:.1f} cm (paper {r.paper_end_distance_cm:.1f})"
-                 for r in table.itertuples()]
+        parts = [f"{r.region} {r.hit_pct:.0f} % (95 % {r.hit_pct_ci95_low:.0f} to {r.hit_pct_ci95_high:.0f}; "
+                 f"paper {r.paper_hit_pct:.0f} %), {r.end_distance_mean_cm:.1f} cm (paper "
+                 f"{r.paper_end_distance_cm:.1f})" for r in table.itertuples()]
         rows.append((f"robot regime {regime}: servoing by region on the test hits", "; ".join(parts), ""))
     return rows
 
@@ -237,8 +252,7 @@ def summary_markdown(curation: pd.DataFrame, predictions: pd.DataFrame, strike_e
                      curation_accuracy: pd.DataFrame | None = None, n_resamples: int = 2000,
                      extra: dict[str, pd.DataFrame] | None = None) -> str:
     """The results table of a run (Markdown), from its report tables; `commit` names the code that ran.
-    `extra`: the tables a run may lack (twin_vs_real, twin_keypoints, robot_regimes,
-    robot_regime_calibration, robot_risk_control), by name."""
+    `extra`: the tables a run may lack (EXTRA_TABLES), by name."""
     extra = extra or {}
     _require(curation, "curation", ["decision", "candidates"])
     _require(strike_error, "strike_error", ["model", "frames_before_hit", "all"])
@@ -267,6 +281,9 @@ def summary_markdown(curation: pd.DataFrame, predictions: pd.DataFrame, strike_e
                  f"{baselines.get('ball_only', np.nan):.1f} / {baselines.get('mean', np.nan):.1f} cm", ""))
     rows += robot_rows(robot)
     rows.append(("uncertainty (uncertainty_verdict.md)", uncertainty_line(verdict), ""))
+    if "uncertainty_learnability" in extra:
+        rows.append(("uncertainty: what the inputs allow (uncertainty_learnability.md)",
+                     learnability_line(extra["uncertainty_learnability"]), ""))
     if "robot_regimes" in extra:
         rows += regime_rows(extra["robot_regimes"])
     if "robot_regime_calibration" in extra:
