@@ -31,6 +31,7 @@ from pingpong.twin.openpose_sim import (
 
 PLAYERS = ("near", "far")
 MATCH_SHARE = 0.5  # a detection is a player's when its median joint distance is under this share of s
+MATCH_CHUNK = 2048  # frames measured at once: every figure is a frame's, and their arrays stay in cache
 # A swap is told from noise only where both sides are in plain view and their true joints lie this many of
 # the joint's COCO sigmas of s apart (a detector erring as COCO's annotators then calls 0.02 % of its
 # unswapped joints swapped: 2.5 sigma, 3.5 standard deviations along the line between them).
@@ -115,9 +116,6 @@ def match_people(detections: np.ndarray, true_px: np.ndarray, scale: np.ndarray)
         chunk = slice(first, first + MATCH_CHUNK)
         out[chunk] = _match_chunk(detections[chunk], true_px[chunk], scale[chunk])
     return out
-
-
-MATCH_CHUNK = 2048
 
 
 def _match_chunk(detections: np.ndarray, true_px: np.ndarray, scale: np.ndarray) -> np.ndarray:
