@@ -266,18 +266,8 @@ def ronchi_perona_rows(per_camera: list[dict], errors: KeypointErrors) -> list[d
     maps to and the configured rate behind it, and the published figure (none retrieved). A keypoint
     the JSON leaves at 0, 0, 0 lies far from every joint: a miss, as OpenPose's would in their evaluation.
     The twin's detector takes no joint from another person (swap: none by construction)."""
-    e = {k: np.concatenate([c[k][:, COCO_KEYPOINTS] for c in per_camera])
-         for k in ("error", "mirror_error", "scale", "inside")}
-    inside = e["inside"]
-    kappa2 = (2 * COCO_SIGMAS[COCO_KEYPOINTS]) ** 2
-    with np.errstate(invalid="ignore", over="ignore"):
-        own = np.exp(-e["error"] ** 2 / (2 * e["scale"] ** 2 * kappa2))[inside]
-        other_side = np.exp(-e["mirror_error"] ** 2 / (2 * e["scale"] ** 2 * kappa2))[inside]
-    best = np.fmax(own, other_side)
-    shares = {"good": (own >= other_side) & (own > RP_GOOD),
-              "jitter": (own >= other_side) & (own >= RP_JITTER) & (own < RP_GOOD),
-              "inversion": (other_side > own) & (other_side >= RP_JITTER),
-              "swap": np.zeros(len(own), bool), "miss": best < RP_JITTER}
+    *counts, total = (int(n) for n in np.sum([_ronchi_perona_counts(c) for c in per_camera], axis=0))
+    shares = dict(zip(("good", "jitter", "inversion", "swap", "miss"), counts, strict=True))
     limb = f"swap_rate {errors.swap_rate:g} x swap_frames {errors.swap_frames:g} / {len(LIMB_SWAPS)} limbs"
     twin = {
         "good": ("a joint within 1.14 COCO sigmas of s of its truth", f"sigma_scale {errors.sigma_scale:g}"),
@@ -289,9 +279,27 @@ def ronchi_perona_rows(per_camera: list[dict], errors: KeypointErrors) -> list[d
         "swap": ("none: the twin's detector never takes another person's joint", "none"),
         "miss": ("a lost joint (0, 0, 0): visible ones at miss_rate, hidden ones at hidden_miss",
                  f"miss_rate {errors.miss_rate:g}, hidden_miss {errors.hidden_miss:g}")}
-    return [{"error (Ronchi & Perona 2017)": kind, "twin_pct": 100 * _share(mask),
+    return [{"error (Ronchi & Perona 2017)": kind, "twin_pct": 100 * _ratio(count, total),
              "published_pct": NOT_RETRIEVED, "the twin's error": twin[kind][0],
-             "config (twin.keypoint_errors)": twin[kind][1], "n": len(own)} for kind, mask in shares.items()]
+             "config (twin.keypoint_errors)": twin[kind][1], "n": total} for kind, count in shares.items()]
+
+
+def _ronchi_perona_counts(e: dict) -> list[int]:
+    """One camera-session's COCO keypoints inside the image counted by Ronchi & Perona's classes (good,
+    jitter, inversion, swap, miss) and in all, their similarity thresholds taken as thresholds of
+    q = d^2 / (s^2 kappa^2) (ks = exp(-q / 2))."""
+    inside = e["inside"][:, COCO_KEYPOINTS]
+    norm = e["scale"][:, COCO_KEYPOINTS] ** 2 * (2 * COCO_SIGMAS[COCO_KEYPOINTS]) ** 2
+    with np.errstate(invalid="ignore", divide="ignore"):
+        own = (e["error"][:, COCO_KEYPOINTS] ** 2 / norm)[inside]
+        other_side = (e["mirror_error"][:, COCO_KEYPOINTS] ** 2 / norm)[inside]
+    good_q, jitter_q = -2 * np.log(RP_GOOD), -2 * np.log(RP_JITTER)  # ks > 0.85, ks >= 0.5
+    own_best = own <= other_side  # ties go to the own keypoint
+    good = own_best & (own < good_q)
+    jitter = own_best & (own >= good_q) & (own <= jitter_q)
+    inversion = ~own_best & (other_side <= jitter_q)
+    miss = np.fmin(own, other_side) > jitter_q
+    return [int(good.sum()), int(jitter.sum()), int(inversion.sum()), 0, int(miss.sum()), len(own)]
 
 
 def expected_swap_share(errors: KeypointErrors) -> float:
