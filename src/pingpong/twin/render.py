@@ -601,6 +601,9 @@ class BallTruth:
 
 
 BALL_SS = 4  # subsamples per pixel side for the ball
+OCCLUSION_MARGIN = 1e-3  # m: a ball farther than this beyond its radius from the table top's or the net's
+# plane, on the camera's side, cannot be hidden by it (its front surface is nearer than the plane by mm,
+# against rounding of ~1e-15 m), so its coverage is the bare hits, exactly what the full test gives
 
 
 def _ball_layer(background: Background, camera: Camera, positions: np.ndarray):
@@ -623,40 +626,47 @@ def _ball_layer(background: Background, camera: Camera, positions: np.ndarray):
     w, h = x1 - x0, y1 - y0
     rays = subpixel_rays(background.ray_map, x0, y0, w, h, BALL_SS).reshape(-1, 2)
     d = np.concatenate([rays, np.ones((len(rays), 1))], axis=1)  # camera frame, depth = ray parameter
-    dd = (d * d).sum(axis=1)[:, None]
-    dc = d @ centres.T  # (N, K)
-    disc = dc**2 - dd * ((centres**2).sum(axis=1) - BALL_RADIUS**2)
+    # per-ray arrays are (K, N): numpy reduces over a short last axis element by element, so the sums over
+    # the K exposure samples run along axis 0, in the same order ((a0 + a1) + a2 ...) and so to the same bits
+    dd = rays[:, 0] * rays[:, 0] + rays[:, 1] * rays[:, 1] + 1.0  # (d * d).sum(axis=1), summed in its order
+    dc = np.ascontiguousarray((d @ centres.T).T)  # (K, N); the product as it was, then transposed
+    disc = dc**2 - dd * ((centres**2).sum(axis=1) - BALL_RADIUS**2)[:, None]
     light = camera.R @ LIGHT_DIR
     d_light, d_world = d @ light, d @ camera.R
     # only the rays that meet the ball at some instant of the exposure are shaded and occluded (about a
     # third of the box's); the others add exact zeros. The products above stay on all rays, so that every
     # value is what it was (a BLAS product of a subset may round differently).
     hit = disc >= 0
-    rows = np.flatnonzero(hit.any(axis=1))
-    dd, dc, disc, hit = dd[rows], dc[rows], disc[rows], hit[rows]
+    rows = np.flatnonzero(hit.any(axis=0))
+    dd, dc, disc, hit = dd[rows], dc[:, rows], disc[:, rows], hit[:, rows]
     d_light, d_world = d_light[rows], d_world[rows]
     s = (dc - np.sqrt(np.maximum(disc, 0.0))) / dd  # depth of the front surface
     # n . l with n = (s d - c) / r, without forming the normals
-    n_dot_l = (s * d_light[:, None] - centres @ light) / BALL_RADIUS
+    n_dot_l = (s * d_light - (centres @ light)[:, None]) / BALL_RADIUS
     shade = BALL_AMBIENT + BALL_DIFFUSE * np.clip(n_dot_l, 0, None)
-    # occlusion by the table top and the see-through net along each subsample's ray
+    coverage = hit.astype(float)
     o = camera.center
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s_top = -o[2] / d_world[:, 2]
-        s_net = -o[1] / d_world[:, 1]
-    p_top = o[:2] + s_top[:, None] * d_world[:, :2]
-    p_net = o[[0, 2]] + s_net[:, None] * d_world[:, [0, 2]]
-    on_top = (s_top > 0) & (np.abs(p_top[:, 0]) <= TABLE_HALF_WIDTH) \
-        & (np.abs(p_top[:, 1]) <= TABLE_HALF_LENGTH)
-    on_net = (s_net > 0) & (np.abs(p_net[:, 0]) <= TABLE_HALF_WIDTH + NET_OVERHANG) & (p_net[:, 1] >= 0) \
-        & (p_net[:, 1] <= NET_HEIGHT)
-    net_pass = np.where(p_net[:, 1] >= NET_HEIGHT - NET_TAPE, 0.0, NET_TRANSMISSION)[:, None]
-    coverage = hit * np.where(on_top[:, None] & (s_top[:, None] < s), 0.0, 1.0) \
-        * np.where(on_net[:, None] & (s_net[:, None] < s), net_pass, 1.0)
+    if o[2] <= 0 or positions[:, 2].min() <= BALL_RADIUS + OCCLUSION_MARGIN:
+        # the table top can hide the ball only where the ball dips to its plane (or the camera is below)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s_top = -o[2] / d_world[:, 2]
+        p_top = o[:2] + s_top[:, None] * d_world[:, :2]
+        on_top = (s_top > 0) & (np.abs(p_top[:, 0]) <= TABLE_HALF_WIDTH) \
+            & (np.abs(p_top[:, 1]) <= TABLE_HALF_LENGTH)
+        coverage = coverage * np.where(on_top & (s_top < s), 0.0, 1.0)
+    if (np.sign(o[1]) * positions[:, 1]).min() <= BALL_RADIUS + OCCLUSION_MARGIN:
+        # and the net only where the ball reaches its plane or the far side of it
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s_net = -o[1] / d_world[:, 1]
+        p_net = o[[0, 2]] + s_net[:, None] * d_world[:, [0, 2]]
+        on_net = (s_net > 0) & (np.abs(p_net[:, 0]) <= TABLE_HALF_WIDTH + NET_OVERHANG) & (p_net[:, 1] >= 0) \
+            & (p_net[:, 1] <= NET_HEIGHT)
+        net_pass = np.where(p_net[:, 1] >= NET_HEIGHT - NET_TAPE, 0.0, NET_TRANSMISSION)
+        coverage = coverage * np.where(on_net & (s_net < s), net_pass, 1.0)
     k = len(positions)
     fine = (h * BALL_SS, w * BALL_SS, 1)
     coverage_sum, shade_sum = np.zeros(len(d)), np.zeros(len(d))
-    coverage_sum[rows], shade_sum[rows] = coverage.sum(axis=1), (coverage * shade).sum(axis=1)
+    coverage_sum[rows], shade_sum[rows] = coverage.sum(axis=0), (coverage * shade).sum(axis=0)
     alpha = average_subsamples(coverage_sum.reshape(fine) / k, BALL_SS)
     shaded = average_subsamples(shade_sum.reshape(fine) / k, BALL_SS)
     return x0, y0, (shaded * BALL_BGR).astype(np.float32), alpha[..., 0].astype(np.float32), \
@@ -737,11 +747,17 @@ def render_shapes(background: Background, camera: Camera, ball_positions: np.nda
                           camera.K[0, 0] * BALL_RADIUS / ball_depth if ball_depth > 0 else 0.0)
         layer = _ball_layer(background, camera, positions)
     occluders = None
+    tx0, ty0, tx1, ty1, nearest = background.table_box
     for shape in shapes:
         if layer is not None and occluders is None and shape.depth < ball_depth:
             occluders = _composite_ball(image, layer)
         shape.draw(image, shape.colour)
-        _restore_table(image, background, shape)
+        # _restore_table's own first tests, here: most shapes are nearer than the table or beside it,
+        # and a call per shape cost more than the test
+        if shape.depth > nearest:
+            sx0, sy0, sx1, sy1 = shape.bbox
+            if sx0 < tx1 and sy0 < ty1 and sx1 > tx0 and sy1 > ty0:
+                _restore_table(image, background, shape)
         if occluders is not None and _overlaps(shape, layer[0], layer[1], *occluders.shape[::-1]):
             shape.draw(occluders, 255, offset=layer[:2])
     if layer is not None:
