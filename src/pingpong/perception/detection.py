@@ -67,8 +67,8 @@ streak, not a hand) and, from 4 px a frame, spread along the motion rather than 
 colour test finds nothing in the window. A ball lost at a hit or behind a player comes back on an unknown
 path, so a new track's second detection looks back (`_track_back`) through up to 8 frames without a ball
 before its first, by the same test along its velocity reversed, each frame's window rows alone.
-Measured against the colour test alone (benchmarks/bench_detection_revisions.py --before the commit before
-the blur test; the default run's streams read where that commit's run wrote them):
+Measured against the colour test alone (benchmarks/bench_detection_revisions.py --before c554328, the commit
+before the blur test, with --mcap and --truth of each stream):
 - the test stream (2 rallies, 3340 frames): recall 98.94 -> 99.82 %, false detections 0 -> 0; the 31 balls
   added lie 0.2 px (median), at most 2.0 px from the truth; the others' centres are unchanged.
 - the default run's 16 cameras (198,668 frames): recall up on each, from 98.14-99.94 to 99.02-100 %; on the
