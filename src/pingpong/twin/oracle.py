@@ -107,6 +107,7 @@ def strike_x_batch(p_hit, v_out, w, params, side, dt: float = 0.004, t_max: floa
     side = np.broadcast_to(side, (n,))
     bounced, active = np.zeros(n, bool), np.isfinite(v[0])
     x = np.full(n, np.nan)
+    live = np.arange(n)  # the balls still flown: every step is per ball, so dropping the others moves no bit
     for _ in range(int(t_max / dt)):
         p1, v1 = rk4_rows(p, v, w, kd, km, ks, dt)
         down = active & (p[2] > r) & (p1[2] <= r)
@@ -126,12 +127,20 @@ def strike_x_batch(p_hit, v_out, w, params, side, dt: float = 0.004, t_max: floa
                 bounced |= hit
         y0, y1 = side * p[1], side * p1[1]
         cross = active & (y0 > STRIKE_Y) & (y1 <= STRIKE_Y)
-        f = (y0 - STRIKE_Y) / np.where(cross, y0 - y1, 1.0)
-        x = np.where(cross & bounced, p[0] + f * (p1[0] - p[0]), x)
+        if cross.any():
+            done = cross & bounced
+            f = (y0[done] - STRIKE_Y) / (y0[done] - y1[done])
+            x[live[done]] = p[0, done] + f * (p1[0, done] - p[0, done])
         active &= ~cross & (p1[2] > -0.76)
         p, v = p1, v1
-        if not active.any():
+        n_active = np.count_nonzero(active)
+        if n_active == 0:
             break
+        if n_active < 0.75 * len(live):  # most balls are done: fly the others alone
+            keep = np.flatnonzero(active)
+            p, v, w = p[:, keep], v[:, keep], w[:, keep]
+            kd, km, ks, e, mu = kd[keep], km[keep], ks[keep], e[keep], mu[keep]
+            side, bounced, active, live = side[keep], bounced[keep], active[keep], live[keep]
     return x
 
 
