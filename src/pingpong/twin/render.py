@@ -488,22 +488,23 @@ def _fixed_point(px: np.ndarray) -> np.ndarray:
     return np.round(px * (1 << SHIFT)).astype(np.int32, order="C")  # cv2 wants contiguous points
 
 
-def _bounds(px: np.ndarray, radius: np.ndarray) -> list:
-    """Pixel bounds [x0, y0, x1, y1] as nested lists (n, m, 4) of shapes with points px (n, m, k, 2)
-    and radii (n, m)."""
+def _bounds(px: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    """Pixel bounds [x0, y0, x1, y1] (n, m, 4) of shapes with points px (n, m, k, 2) and radii (n, m)."""
     lo = np.floor(px.min(axis=2) - radius[..., None] - 1)
     hi = np.ceil(px.max(axis=2) + radius[..., None] + 2)
-    return np.concatenate([lo, hi], axis=2).astype(int).tolist()
+    return np.concatenate([lo, hi], axis=2).astype(int)
 
 
 def _append_shapes(frames: list[list[_Shape]], valid: np.ndarray, depth: np.ndarray, kind: str,
                    px: np.ndarray, radius: np.ndarray, size: np.ndarray, colours: list) -> None:
     """Append to each frame's list its valid shapes (n, m); colours per frame and shape (n, m)."""
-    depth, size, bounds = depth.tolist(), size.tolist(), _bounds(px, radius)
-    points = _fixed_point(px)
-    for i, j in zip(*np.nonzero(valid), strict=True):
-        frames[i].append(_Shape(depth[i][j], kind, points[i, j], size[i][j], colours[i][j],
-                                tuple(bounds[i][j])))
+    ii, jj = np.nonzero(valid)
+    # the valid shapes' values picked out as arrays first, then as Python values: indexing nested lists
+    # and arrays with numpy integers, shape by shape, cost more than building the shapes
+    rows = zip(ii.tolist(), jj.tolist(), depth[ii, jj].tolist(), size[ii, jj].tolist(),
+               _bounds(px, radius)[ii, jj].tolist(), _fixed_point(px)[ii, jj], strict=True)
+    for i, j, z, thickness, bounds, points in rows:
+        frames[i].append(_Shape(z, kind, points, thickness, colours[i][j], tuple(bounds)))
 
 
 LIMB_ENDS = np.array([(a, b) for a, b, _, _ in LIMBS])
