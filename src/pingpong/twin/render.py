@@ -627,8 +627,9 @@ def _ball_layer(background: Background, camera: Camera, positions: np.ndarray):
     w, h = x1 - x0, y1 - y0
     rays = subpixel_rays(background.ray_map, x0, y0, w, h, BALL_SS).reshape(-1, 2)
     d = np.concatenate([rays, np.ones((len(rays), 1))], axis=1)  # camera frame, depth = ray parameter
-    # per-ray arrays are (K, N): numpy reduces over a short last axis element by element, so the sums over
-    # the K exposure samples run along axis 0, in the same order ((a0 + a1) + a2 ...) and so to the same bits
+    # per-ray arrays are (K, N), K exposure samples by N rays: summed along axis 0 they add in the order
+    # ((a0 + a1) + a2 ...) that numpy keeps over a last axis shorter than 8 (its pairwise sum starts at 8),
+    # so the sums are those of (N, K) arrays bit for bit, without a slow reduction per ray
     dd = rays[:, 0] * rays[:, 0] + rays[:, 1] * rays[:, 1] + 1.0  # (d * d).sum(axis=1), summed in its order
     dc = np.ascontiguousarray((d @ centres.T).T)  # (K, N); the product as it was, then transposed
     disc = dc**2 - dd * ((centres**2).sum(axis=1) - BALL_RADIUS**2)[:, None]
