@@ -254,16 +254,37 @@ RP_GOOD, RP_JITTER = 0.85, 0.5
 COCO_KEYPOINTS = [BODY25.index(j) for j in ("Nose", "LEye", "REye", "LEar", "REar", "LShoulder", "RShoulder",
                                             "LElbow", "RElbow", "LWrist", "RWrist", "LHip", "RHip", "LKnee",
                                             "RKnee", "LAnkle", "RAnkle")]
-RONCHI_PERONA_2017 = ("Ronchi M. R., Perona P.: Benchmarking and Error Diagnosis in Multi-Instance Pose "
-                      "Estimation. ICCV 2017, arXiv 1707.05388, Fig. 6 (the CMU team's bottom-up detector, "
-                      "OpenPose's, on COCO)")
-NOT_RETRIEVED = "no published figure (Fig. 6 not retrieved)"
+# The published rates beside the twin's: PoseFix (Moon, Chang & Lee 2019, CVPR; its released
+# main/gen_batch.py, synthesize_pose) draws each COCO keypoint's error class with these probabilities, which
+# its author took from Ronchi & Perona 2017's statistics of the CMU (OpenPose) and G-RMI detectors on COCO
+# (PoseFix_RELEASE issue 37; their Fig. 6 itself was not retrieved): a person with more than 10 annotated
+# keypoints, not in a crowd. Per COCO keypoint (nose, eyes, ears, shoulders, elbows, wrists, hips, knees,
+# ankles, left and right alike); the table shows their mean over the 17.
+POSEFIX_2019 = {  # class -> per keypoint group probability
+    "jitter": {"nose": 0.10, "eyes": 0.15, "ears": 0.15, "shoulders": 0.15, "elbows": 0.15, "wrists": 0.15,
+               "hips": 0.20, "knees": 0.10, "ankles": 0.10},
+    "inversion": {"nose": 0.01, "eyes": 0.01, "ears": 0.01, "shoulders": 0.03, "elbows": 0.03, "wrists": 0.03,
+                  "hips": 0.06, "knees": 0.06, "ankles": 0.06},
+    "swap": {"nose": 0.01, "eyes": 0.01, "ears": 0.01, "shoulders": 0.06, "elbows": 0.06, "wrists": 0.06,
+             "hips": 0.03, "knees": 0.03, "ankles": 0.03},
+    "miss": {"nose": 0.02, "eyes": 0.02, "ears": 0.02, "shoulders": 0.05, "elbows": 0.10, "wrists": 0.10,
+             "hips": 0.10, "knees": 0.10, "ankles": 0.05},
+}
+COCO_GROUP_SIZES = {"nose": 1, "eyes": 2, "ears": 2, "shoulders": 2, "elbows": 2, "wrists": 2, "hips": 2,
+                    "knees": 2, "ankles": 2}  # the 17 COCO keypoints
+
+
+def posefix_shares() -> dict[str, float]:
+    """Each class's share of the 17 COCO keypoints (%) under POSEFIX_2019, good the rest."""
+    shares = {kind: 100 * sum(COCO_GROUP_SIZES[g] * p for g, p in groups.items()) / 17
+              for kind, groups in POSEFIX_2019.items()}
+    return {"good": 100 - sum(shares.values()), **shares}
 
 
 def ronchi_perona_rows(per_camera: list[dict], errors: KeypointErrors) -> list[dict]:
     """The players' COCO keypoints inside the image (every camera) classed by Ronchi & Perona's definitions
     (good, jitter, inversion, swap, miss: shares of the keypoints, %), each beside the twin's error it
-    maps to and the configured rate behind it, and the published figure (none retrieved). A keypoint
+    maps to and the configured rate behind it, and the published figure (POSEFIX_2019). A keypoint
     the JSON leaves at 0, 0, 0 lies far from every joint: a miss, as OpenPose's would in their evaluation.
     The twin's detector takes no joint from another person (swap: none by construction)."""
     *counts, total = (int(n) for n in np.sum([_ronchi_perona_counts(c) for c in per_camera], axis=0))
@@ -279,8 +300,9 @@ def ronchi_perona_rows(per_camera: list[dict], errors: KeypointErrors) -> list[d
         "swap": ("none: the twin's detector never takes another person's joint", "none"),
         "miss": ("a lost joint (0, 0, 0): visible ones at miss_rate, hidden ones at hidden_miss",
                  f"miss_rate {errors.miss_rate:g}, hidden_miss {errors.hidden_miss:g}")}
+    published = posefix_shares()
     return [{"error (Ronchi & Perona 2017)": kind, "twin_pct": 100 * _ratio(count, total),
-             "published_pct": NOT_RETRIEVED, "the twin's error": twin[kind][0],
+             "published_pct": published[kind], "the twin's error": twin[kind][0],
              "config (twin.keypoint_errors)": twin[kind][1], "n": total} for kind, count in shares.items()]
 
 

@@ -36,16 +36,20 @@ COCOanalyze._find_kpt_errors): good (its own, ks > 0.85), jitter (its own, 0.5 <
 every one; a keypoint a detector leaves out counts here). `twin_pct`: the players' COCO keypoints inside
 the image, every camera and session, classed by those definitions on the twin's JSON; beside it the
 twin's error each class maps to (their inversion is the twin's left/right swap, their miss its lost
-joint) and the configured rates behind it. `published_pct`: Ronchi & Perona's Fig. 6 gives these
-frequencies for the CMU team's detector (OpenPose's) on COCO; the figure was not retrieved, so no published
-number stands here and swap_rate, miss_rate and hidden_miss remain the project's choice."""
+joint) and the configured rates behind it. `published_pct`: the mean over the 17 COCO keypoints of the
+per-keypoint probabilities PoseFix (Moon, Chang & Lee 2019, CVPR; its released main/gen_batch.py) draws
+each class with, which its author took from Ronchi & Perona's statistics of the CMU (OpenPose) and G-RMI
+detectors on COCO (a person with more than 10 annotated keypoints, not in a crowd). sigma_scale and
+swap_rate are set to them (jitter 14 %, inversion 3.5 %); the twin's scene has no person near a player's
+joints, so no swap; its misses lie near the published share."""
 SOURCES = """Sources. COCO's per-keypoint sigmas: the COCO keypoint evaluation
 (cocodataset.org/#keypoints-eval; pycocotools cocoeval.py: nose .026, eyes .025, ears .035, shoulders .079,
 elbows .072, wrists .062, hips .107, knees .087, ankles .089), the RMS of human annotators' 2D error as a
 share of s on 5,000 redundantly annotated images; a detector as accurate as the annotators' agreement has
 sigma_scale 1. Ronchi M. R., Perona P. 2017 (ICCV, "Benchmarking and Error Diagnosis in Multi-Instance Pose
-Estimation", arXiv 1707.05388; definitions from their code, github.com/matteorr/coco-analyze): Fig. 6's
-frequencies not retrieved (above), so swap_rate, hidden_miss and miss_rate are chosen, not published. In
+Estimation", arXiv 1707.05388; definitions from their code, github.com/matteorr/coco-analyze); Moon G.,
+Chang J. Y., Lee K. M. 2019 (CVPR, "PoseFix: Model-agnostic General Human Pose Refinement Network",
+github.com/mks0601/PoseFix_RELEASE, main/gen_batch.py synthesize_pose: the per-keypoint rates above). In
 3D, Needham et al. 2021 (Sci Rep, doi:10.1038/s41598-021-00212-x, abstract) found OpenPose's multi-camera
 joint centres 30-50 mm off marker-based ones at the hip and knee (systematic) and 1-15 mm at the ankle:
 compare perception_accuracy.md's 3D joint error."""

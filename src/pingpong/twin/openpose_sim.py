@@ -72,8 +72,8 @@ class KeypointErrors(Settings):
 
 def default_keypoint_errors(**changes) -> KeypointErrors:
     """config/schema.yaml's defaults (a test holds them equal), with changes, for tests and benchmarks."""
-    values = dict(sigma_scale=1.0, correlation_s=0.1, hidden_scale=2.0, hidden_miss=0.5, miss_rate=0.02,
-                  swap_rate=0.01, swap_frames=3.0, exposure_s=0.004, false_people_rate=0.3)
+    values = dict(sigma_scale=0.82, correlation_s=0.1, hidden_scale=2.0, hidden_miss=0.5, miss_rate=0.02,
+                  swap_rate=0.045, swap_frames=3.0, exposure_s=0.004, false_people_rate=0.3)
     return KeypointErrors(**{**values, **changes})
 
 
