@@ -96,3 +96,39 @@ def test_ball_layer_equals_the_plain_one_bit_for_bit(rig_rays):
             compared += 1
             hidden += bool(new[3].sum() < new[4] * 0.999)  # by the net, the table or the image's edge
     assert compared > 600 and hidden > 50  # the occlusion tests were exercised, not only skipped
+
+
+def reference_append_shapes(frames, valid, depth, kind, px, radius, size, colours):
+    """render._append_shapes as it was: shape by shape, indexing nested lists and arrays by numpy integers."""
+    lo = np.floor(px.min(axis=2) - radius[..., None] - 1)
+    hi = np.ceil(px.max(axis=2) + radius[..., None] + 2)
+    depth, size, bounds = depth.tolist(), size.tolist(), np.concatenate([lo, hi], axis=2).astype(int).tolist()
+    points = render._fixed_point(px)
+    for i, j in zip(*np.nonzero(valid), strict=True):
+        frames[i].append(render._Shape(depth[i][j], kind, points[i, j], size[i][j], colours[i][j],
+                                       tuple(bounds[i][j])))
+
+
+def test_frame_shapes_equal_those_built_shape_by_shape(rig_rays, monkeypatch):
+    """People and paddles of a simulated rally: every shape's fields, points and types as before."""
+    from pingpong.twin.cameras import _paddles_at, frame_times
+    from pingpong.twin.session import FaultRates, simulate_session
+    from pingpong.twin.truth import JOINT_COLUMNS
+
+    truth = simulate_session(1, FaultRates(), rng_for(3, "session"))
+    bodies = [rows[list(JOINT_COLUMNS)].to_numpy().reshape(-1, 25, 3)[:300]
+              for _, rows in truth.people.groupby("person", sort=False)]
+    looks = render.make_player_looks(np.random.default_rng(0), len(bodies))
+    paddles = list(_paddles_at(truth.paddles, frame_times(truth.people)[:300]).values())
+    camera = rig_rays[0][0]
+    new = render.frame_shapes(camera, bodies, looks, paddles)
+    monkeypatch.setattr(render, "_append_shapes", reference_append_shapes)
+    old = render.frame_shapes(camera, bodies, looks, paddles)
+    assert sum(map(len, new)) > 3000
+    for a_frame, b_frame in zip(new, old, strict=True):
+        assert len(a_frame) == len(b_frame)
+        for a, b in zip(a_frame, b_frame, strict=True):
+            assert (a.depth, a.kind, a.size, a.colour, a.bbox) == (b.depth, b.kind, b.size, b.colour, b.bbox)
+            assert type(a.size) is type(b.size) and type(a.depth) is type(b.depth)
+            assert a.points.dtype == b.points.dtype and a.points.flags.c_contiguous \
+                and a.points.tobytes() == b.points.tobytes()
