@@ -14,8 +14,6 @@ as the perception report scores them (reports.perception_accuracy.detection_rows
 """
 
 import argparse
-import importlib.util
-import subprocess
 import time
 from pathlib import Path
 
@@ -23,6 +21,7 @@ import cv2
 import numpy as np
 import pandas as pd
 from bench_detection import twin_frames
+from timing import module_at
 
 from pingpong.io.camera_streams import CameraFrame
 from pingpong.io.mcap_io import read_camera_stream
@@ -30,16 +29,6 @@ from pingpong.perception import detection
 from pingpong.reports.perception_accuracy import detection_rows
 
 DETECTION = "src/pingpong/perception/detection.py"
-
-
-def module_at(revision: str):
-    """detection.py as it was at `revision`, imported as a module of its own."""
-    source = subprocess.run(["git", "show", f"{revision}:{DETECTION}"], check=True, capture_output=True,
-                            text=True, cwd=Path(__file__).resolve().parents[1]).stdout
-    spec = importlib.util.spec_from_loader(f"detection_{revision}", loader=None)
-    module = importlib.util.module_from_spec(spec)
-    exec(compile(source, f"{revision}:{DETECTION}", "exec"), module.__dict__)
-    return module
 
 
 def main():
@@ -61,7 +50,7 @@ def main():
         truth["time_ns"] = [f.time_ns for f in frames]
         source = f"twin, {a.rallies} rallies"
     frames = frames[:a.frames]
-    sides = {a.before: module_at(a.before), "this checkout": detection}
+    sides = {a.before: module_at(a.before, DETECTION), "this checkout": detection}
     best, tables = dict.fromkeys(sides, np.inf), {}
     for _ in range(a.rounds):
         for name, module in sides.items():

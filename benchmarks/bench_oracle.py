@@ -9,13 +9,10 @@ round of CPU time; the two tables must be equal bit for bit.
 """
 
 import argparse
-import importlib.util
-import subprocess
 import time
-from pathlib import Path
 
 import numpy as np
-from timing import best_time
+from timing import best_time, module_at
 
 from pingpong.common.seeding import rng_for
 from pingpong.twin import oracle as this_oracle
@@ -25,19 +22,9 @@ from pingpong.twin.session import FaultRates, simulate_session
 ORACLE = "src/pingpong/twin/oracle.py"
 
 
-def module_at(revision: str):
-    """oracle.py as it was at `revision`, imported as a module of its own."""
-    source = subprocess.run(["git", "show", f"{revision}:{ORACLE}"], check=True, capture_output=True,
-                            text=True, cwd=Path(__file__).resolve().parents[1]).stdout
-    spec = importlib.util.spec_from_loader(f"oracle_{revision}", loader=None)
-    module = importlib.util.module_from_spec(spec)
-    exec(compile(source, f"{revision}:{ORACLE}", "exec"), module.__dict__)
-    return module
-
-
 def against(records, revision: str, draws: int, rounds: int = 3) -> None:
     """This checkout's session_oracle beside `revision`'s: CPU time and equality of the tables."""
-    sides = {revision: module_at(revision), "this checkout": this_oracle}
+    sides = {revision: module_at(revision, ORACLE), "this checkout": this_oracle}
     best, tables = dict.fromkeys(sides, np.inf), {}
     for _ in range(rounds):
         for name, module in sides.items():

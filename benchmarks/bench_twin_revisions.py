@@ -11,13 +11,11 @@ JPEG bytes and ball truth of every frame must be equal: a speed-up that changes 
 
 import argparse
 import hashlib
-import importlib.util
-import subprocess
 import time
-from pathlib import Path
 
 import cv2
 import numpy as np
+from timing import module_at
 
 from pingpong.common.seeding import rng_for
 from pingpong.twin import cameras, render
@@ -26,16 +24,6 @@ from pingpong.twin.session import SIDES, FaultRates, simulate_session
 from pingpong.twin.truth import JOINT_COLUMNS
 
 RENDER = "src/pingpong/twin/render.py"
-
-
-def module_at(revision: str):
-    """render.py as it was at `revision`, imported as a module of its own."""
-    source = subprocess.run(["git", "show", f"{revision}:{RENDER}"], check=True, capture_output=True,
-                            text=True, cwd=Path(__file__).resolve().parents[1]).stdout
-    spec = importlib.util.spec_from_loader(f"render_{revision}", loader=None)
-    module = importlib.util.module_from_spec(spec)
-    exec(compile(source, f"{revision}:{RENDER}", "exec"), module.__dict__)
-    return module
 
 
 def frame_inputs(truth, camera, n_frames: int):
@@ -81,7 +69,7 @@ def main():
     truth = simulate_session(a.rallies, FaultRates(), rng_for(1, "bench"))
     rig = make_rig(rng_for(1, "rig"), 4, 480, 360)
     lab = render.make_lab(rng_for(1, "lab"))
-    sides = {a.before: module_at(a.before), "this checkout": render}
+    sides = {a.before: module_at(a.before, RENDER), "this checkout": render}
     print(f"{a.rallies} rallies, 480x360, best of {a.rounds} rounds\n")
     print("| camera | frames | renderer | CPU ms/frame | time / before's | JPEG and truth digest |\n"
           "|---|---:|---|---:|---:|---|")

@@ -1,9 +1,11 @@
 """Timing helpers shared by the benchmark scripts (run as `python benchmarks/<name>.py`)."""
 
+import importlib.util
 import statistics
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 
 def best_time(fn, repeats: int) -> tuple[float, object]:
@@ -26,3 +28,14 @@ def fresh_process_medians(sides: dict[str, str], runs: int) -> dict[str, float]:
             subprocess.run([sys.executable, "-c", code], check=True)
             seconds[name].append(time.perf_counter() - start)
     return {name: statistics.median(s) for name, s in seconds.items()}
+
+
+def module_at(revision: str, path: str):
+    """The module at `path` (relative to the repository) as it was at git `revision`, imported as a module
+    of its own: a benchmark's baseline run side by side with this checkout's."""
+    source = subprocess.run(["git", "show", f"{revision}:{path}"], check=True, capture_output=True, text=True,
+                            cwd=Path(__file__).resolve().parents[1]).stdout
+    spec = importlib.util.spec_from_loader(f"{Path(path).stem}_{revision}", loader=None)
+    module = importlib.util.module_from_spec(spec)
+    exec(compile(source, f"{revision}:{path}", "exec"), module.__dict__)
+    return module
