@@ -222,9 +222,11 @@ def _tiny_identity(px, truth_px):
 def test_the_choice_per_camera_and_player_matches_the_truth(tiny_run):
     """The tiny run's OpenPose people (pose2d with this checkout's code, from raw/) matched across its
     cameras: per camera and player, over the frames where the camera and at least one other detect the
-    player, the camera gives the player's slot his own detection in >= 97 % of them, else none (with a
+    player, the camera gives the player's slot his own detection in >= 95 % of them, else none (with a
     detector's errors a view with a swapped limb or joints hidden behind the trunk disagrees now and then:
-    1.1 % of cam2's far player on the tiny run); no camera ever gives a slot the bystander or the other
+    1.1 % of cam2's far player on the tiny run at swap_rate 0.01; at 0.045, the rate after PoseFix's
+    inversions that issue 41 set, 0.9-4.1 % by camera and player, cam2's far player the most; the bar was 97 %
+    before); no camera ever gives a slot the bystander or the other
     player; the chosen joints lie as near the truth as the twin's detector puts them (COCO's sigmas of
     the person's scale: a median within 6 px at 480 px width)."""
     root = Path(tiny_run)
@@ -256,7 +258,7 @@ def test_the_choice_per_camera_and_player_matches_the_truth(tiny_run):
         for side in range(2):
             mask = detected[:, side, c] & (detected[:, side].sum(axis=-1) >= 2)
             accuracy = np.mean(chosen_as[mask, side] == side)
-            assert accuracy >= 0.97, f"{cameras[c].name} {names[side]}: {accuracy:.4f} of frames chosen right"
+            assert accuracy >= 0.95, f"{cameras[c].name} {names[side]}: {accuracy:.4f} of frames chosen right"
             assert not (chosen_as[:, side] == 1 - side).any(), f"{cameras[c].name}: the players mixed up"
             f = np.flatnonzero(chosen_as[:, side] == side)
             errors.append(np.linalg.norm(people[c][0][f, choice[f, side, c]] - truth_px[f, side], axis=-1))

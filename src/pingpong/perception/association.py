@@ -127,7 +127,7 @@ def associate(cameras: list[Camera], people: list[tuple[np.ndarray, np.ndarray, 
     fits = combination_fits(cameras, [p[0] for p in people], [p[1] for p in people], gate_px)
     ids = [p[2] for p in people]
     choice = _choose(fits, ids, scene, None)
-    foreign = foreign_tracklets(choice, ids)
+    foreign = foreign_tracklets(choice, ids, pooled=scene.mode == "subjects")
     if any(f.any() for f in foreign):
         choice = _choose(fits, ids, scene, foreign)
     return choice
@@ -171,28 +171,38 @@ def _choose(fits: tuple, ids: list[np.ndarray], scene: Scene, foreign: list[np.n
 
 def _foreign_view(foreign: np.ndarray, tracklet: np.ndarray, slot: int, scene: Scene) -> np.ndarray:
     """(F,) whether a camera's person (tracklet ids (F,), -1 where none) is foreign to the slot
-    (foreign (S, T) of foreign_tracklets)."""
-    rows = foreign[slot] if scene.mode == "players" else foreign.all(axis=0)
+    (foreign (S, T) of foreign_tracklets; subjects mode: one pooled row for every slot)."""
+    rows = foreign[slot] if scene.mode == "players" else foreign[0]
     return (tracklet >= 0) & rows[np.maximum(tracklet, 0)] if len(rows) else np.zeros(len(tracklet), bool)
 
 
-def foreign_tracklets(choice: np.ndarray, ids: list[np.ndarray]) -> list[np.ndarray]:
+def foreign_tracklets(choice: np.ndarray, ids: list[np.ndarray], pooled: bool = False) -> list[np.ndarray]:
     """Per camera, (S, T) True where tracklet t of the camera is someone other than slot s's person:
     seen beside the person the camera gave the slot (same frame, another tracklet) in more frames than
     the camera gave the slot tracklet t. choice (F, S, C) as associate's; ids[c] (F, P) the tracklet id
-    of each of camera c's people (-1 where none)."""
+    of each of camera c's people (-1 where none).
+
+    pooled (subjects mode, whose slots are labels set afterwards): one row (1, T), the slots taken together:
+    t is foreign when it was seen unchosen beside a chosen person in more frames than it was chosen for any
+    slot. Slot by slot, a subject whose frames the labels split between two slots was seen beside each
+    slot's other occupant more often than chosen for it, so foreign to every slot and lost (the lab
+    walkthrough's far player: found in 25 of 8,442 frames once the twin's limbs swapped at PoseFix's
+    rates)."""
     frames = np.arange(len(choice))
     out = []
     for c, person in enumerate(ids):
         n_ids = int(person.max(initial=-1)) + 1
-        mine = np.zeros((choice.shape[1], n_ids), int)
-        beside = np.zeros((choice.shape[1], n_ids), int)
-        for s in range(choice.shape[1]):
-            got = choice[:, s, c] >= 0
-            chosen = person[frames[got], choice[got, s, c]]
-            np.add.at(mine[s], chosen, 1)
-            others = person[got][(person[got] >= 0) & (person[got] != chosen[:, None])]
-            np.add.at(beside[s], others, 1)
+        groups = [list(range(choice.shape[1]))] if pooled else [[s] for s in range(choice.shape[1])]
+        mine = np.zeros((len(groups), n_ids), int)
+        beside = np.zeros((len(groups), n_ids), int)
+        for g, slots in enumerate(groups):
+            given = choice[:, slots, c]  # (F, slots) the camera's person index given each slot
+            got = (given >= 0).any(axis=1)
+            chosen = np.where(given >= 0, person[frames[:, None], np.maximum(given, 0)], -1)[got]  # tracklets
+            np.add.at(mine[g], chosen[chosen >= 0], 1)
+            present = person[got]
+            unchosen = (present >= 0) & ~(present[:, :, None] == chosen[:, None, :]).any(axis=2)
+            np.add.at(beside[g], present[unchosen], 1)
         out.append(beside > mine)
     return out
 
