@@ -192,6 +192,9 @@ def foreign_tracklets(choice: np.ndarray, ids: list[np.ndarray], pooled: bool = 
     out = []
     for c, person in enumerate(ids):
         n_ids = int(person.max(initial=-1)) + 1
+        if n_ids == 0:  # a camera that saw nobody
+            out.append(np.zeros((1 if pooled else choice.shape[1], 0), bool))
+            continue
         groups = [list(range(choice.shape[1]))] if pooled else [[s] for s in range(choice.shape[1])]
         mine = np.zeros((len(groups), n_ids), int)
         beside = np.zeros((len(groups), n_ids), int)
