@@ -188,20 +188,19 @@ def foreign_tracklets(choice: np.ndarray, ids: list[np.ndarray], pooled: bool = 
     slot's other occupant more often than chosen for it, so foreign to every slot and lost (the lab
     walkthrough's far player: found in 25 of 8,442 frames once the twin's limbs swapped at PoseFix's
     rates)."""
-    frames = np.arange(len(choice))
     out = []
     for c, person in enumerate(ids):
         n_ids = int(person.max(initial=-1)) + 1
-        if n_ids == 0:  # a camera that saw nobody
-            out.append(np.zeros((1 if pooled else choice.shape[1], 0), bool))
-            continue
         groups = [list(range(choice.shape[1]))] if pooled else [[s] for s in range(choice.shape[1])]
         mine = np.zeros((len(groups), n_ids), int)
         beside = np.zeros((len(groups), n_ids), int)
         for g, slots in enumerate(groups):
             given = choice[:, slots, c]  # (F, slots) the camera's person index given each slot
             got = (given >= 0).any(axis=1)
-            chosen = np.where(given >= 0, person[frames[:, None], np.maximum(given, 0)], -1)[got]  # tracklets
+            at = np.nonzero(given >= 0)  # only where a person was given: a camera may have none at all
+            chosen = np.full(given.shape, -1)
+            chosen[at] = person[at[0], given[at]]
+            chosen = chosen[got]  # (frames with any, slots) the tracklets given
             np.add.at(mine[g], chosen[chosen >= 0], 1)
             present = person[got]
             unchosen = (present >= 0) & ~(present[:, :, None] == chosen[:, None, :]).any(axis=2)

@@ -5,22 +5,13 @@ over whole hits."""
 
 import numpy as np
 import pandas as pd
-from scipy.stats import bootstrap
 
 from pingpong.curation.schemas import HIT_KEYS
-from pingpong.reports.summary import TABLE1_FRAMES
+from pingpong.reports.summary import TABLE1_FRAMES, bootstrap_interval
 
 
 def _median_difference(a, b, axis=-1):
     return np.median(a, axis=axis) - np.median(b, axis=axis)
-
-
-def _interval(data, statistic, n_resamples: int, rng) -> tuple[float, float]:
-    if len(data[0]) < 2:  # one hit has no spread to resample
-        return np.nan, np.nan
-    ci = bootstrap(data, statistic, paired=len(data) > 1, vectorized=True, n_resamples=n_resamples,
-                   method="percentile", rng=rng).confidence_interval
-    return float(ci.low), float(ci.high)
 
 
 def hit_errors(predictions: pd.DataFrame) -> pd.DataFrame:
@@ -41,9 +32,9 @@ def grid_slice_table(errors: dict[str, pd.DataFrame], ids: dict[str, str], val_l
         e = errors[name].reindex(winner.index)
         for frame in TABLE1_FRAMES:
             mine, best = e[frame].to_numpy(), winner[frame].to_numpy()
-            low, high = _interval((mine,), np.median, n_resamples, rng)
+            low, high = bootstrap_interval((mine,), np.median, n_resamples, rng)
             d_low, d_high = ((0.0, 0.0) if name == names[0]
-                             else _interval((mine, best), _median_difference, n_resamples, rng))
+                             else bootstrap_interval((mine, best), _median_difference, n_resamples, rng))
             rows.append({"net": name, "config_id": ids[name], "mean_val_loss": val_loss[name],
                          "frames_before_hit": frame, "median_cm": float(np.median(mine)), "low_cm": low,
                          "high_cm": high, "minus_winner_cm": float(np.median(mine) - np.median(best)),

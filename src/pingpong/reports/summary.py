@@ -66,15 +66,17 @@ def table1(predictions: pd.DataFrame, seed: int, n_resamples: int = 2000) -> pd.
     rows = []
     for frame in TABLE1_FRAMES:
         e = errors[frame].to_numpy()
-        ci = _interval((e,), np.median, n_resamples, rng)
+        ci = bootstrap_interval((e,), np.median, n_resamples, rng)
         rows.append((FRAME_LABELS[frame], np.median(e), *ci))
     late, early = errors[1].to_numpy(), errors[10].to_numpy()
-    ci = _interval((late, early), _ratio, n_resamples, rng)
+    ci = bootstrap_interval((late, early), _ratio, n_resamples, rng)
     rows.append(("1 frame / 10 frames", _ratio(late, early), *ci))
     return pd.DataFrame(rows, columns=["quantity", "value", "low", "high"])
 
 
-def _interval(data, statistic, n_resamples, rng) -> tuple[float, float]:
+def bootstrap_interval(data, statistic, n_resamples, rng) -> tuple[float, float]:
+    """The 95 % percentile bootstrap interval of statistic over data (arrays resampled together, paired,
+    when more than one); NaN where there is one value or none."""
     if len(data[0]) < 2:  # one hit has no spread to resample
         return np.nan, np.nan
     ci = bootstrap(data, statistic, paired=len(data) > 1, vectorized=True, n_resamples=n_resamples,
