@@ -37,8 +37,10 @@ run: setup
 	$(BIN)/snakemake
 
 # The paper's number of hits through every stage (issue 38), in a clone of its own (its artifacts share the
-# default run's paths). Resumable: run it again and Snakemake goes on where it stopped; each part's times are
-# appended to paper_scale_times.jsonl, and analysis/paper_scale_summary.py writes docs/results/paper_scale.md.
+# default run's paths). Resumable: run it again and Snakemake goes on where it stopped (after a kill, unlock
+# first: `$(BIN)/snakemake --unlock --configfile $(PAPER_SCALE_CONFIGS)`); each part's times are recorded in
+# paper_scale_times.jsonl (checkpointed, so a killed part keeps its time), and analysis/paper_scale_summary.py
+# writes docs/results/paper_scale.md.
 PAPER_SCALE_CONFIGS := config/config.yaml config/paper_hits.yaml
 
 paper-scale: setup

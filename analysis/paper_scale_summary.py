@@ -47,11 +47,16 @@ def cost_rows(root: Path) -> list[tuple[str, str]]:
     times = root / "paper_scale_times.jsonl"
     parts = [json.loads(line) for line in times.read_text().splitlines()] if times.is_file() else []
     rows = [("configuration", " ".join(CONFIGS))]
-    if parts:
-        wall, cpu = sum(p["wall_s"] for p in parts), sum(p["user_s"] + p["system_s"] for p in parts)
-        rows += [("wall time", f"{wall / 3600:.2f} h in {len(parts)} part(s), from {parts[0]['started']}"),
-                 ("CPU time (user + system)", f"{cpu / 3600:.2f} h"),
-                 ("peak memory of one job", f"{max(p['max_rss_mb'] for p in parts) / 1024:.2f} GB")]
+    if parts:  # parts killed with their session are timed to their last checkpoint (timed_run.py)
+        timed = [p for p in parts if p.get("user_s") is not None]
+        wall, cpu = sum(p["wall_s"] for p in parts), sum(p["user_s"] + p["system_s"] for p in timed)
+        stopped = sum(not p.get("complete", True) for p in parts)
+        rss = [p["max_rss_mb"] for p in parts if p.get("max_rss_mb")]
+        rows += [("wall time", f"{wall / 3600:.2f} h in {len(parts)} part(s), from {parts[0]['started']}"
+                  + (f"; {stopped} stopped before its end, timed to its last record" if stopped else "")),
+                 ("CPU time (user + system)", f"{cpu / 3600:.2f} h"
+                  + ("" if len(timed) == len(parts) else f" over the {len(timed)} part(s) that recorded it")),
+                 ("peak memory of one job", f"{max(rss) / 1024:.2f} GB" if rss else "not recorded")]
     else:
         rows.append(("wall and CPU time", "not recorded (no paper_scale_times.jsonl)"))
     rows.append(("disk (raw, interim, processed, reports)", f"{disk_bytes(root) / 1e9:.1f} GB"))
