@@ -90,8 +90,9 @@ def test_the_summary_sums_the_parts_and_reads_the_run(tiny_run, tmp_path):
     assert costs["wall time"] == "2.00 h in 2 part(s), from 2026-12-05T01:00:00+00:00"
     assert costs["CPU time (user + system)"] == "2.00 h" and costs["peak memory of one job"] == "2.00 GB"
     with (root / "paper_scale_times.jsonl").open("a") as times:  # a part killed before it recorded its CPU
-        times.write("\n" + json.dumps({"started": "2026-12-05T04:00:00+00:00", "wall_s": 3600.0, "user_s": None,
-                                       "system_s": None, "max_rss_mb": None, "complete": False}))
+        times.write("\n" + json.dumps({"started": "2026-12-05T04:00:00+00:00", "wall_s": 3600.0,
+                                       "user_s": None, "system_s": None, "max_rss_mb": None,
+                                       "complete": False}))
     costs = dict(summary.cost_rows(root))
     assert costs["wall time"].startswith("3.00 h in 3 part(s)") and costs["wall time"].endswith(
         "; 1 stopped before its end, timed to its last record")
