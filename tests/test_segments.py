@@ -163,18 +163,15 @@ def test_filtered_ball_is_closer_to_the_truth(run):
     assert rms(filtered) < 0.75 * rms(raw)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "known defect, found 2026-12-02: drop_ball_outliers confirms a sample by a neighbour 2 frames away "
-    "within 40 m/s * 20 ms + 5 cm = 0.85 m, so an outlier 0.77 m off its flight stays (a session of the "
-    "twin put one at the net, where it also made two spurious net crossings that cut the filter); fixing "
-    "the gate changes the default run's curation, left for a run of its own"))
 def test_an_outlier_within_the_gate_of_a_neighbour_two_frames_away_is_dropped():
     t = np.arange(100) / 100
     ball = np.column_stack([np.zeros(100), -2.0 + 5.0 * t, 0.3 + 0.0 * t])
     ball[50, 2] += 0.77
     ball3d = pd.DataFrame({"time_ns": (t * 1e9).astype(np.int64), "x": ball[:, 0], "y": ball[:, 1],
                            "z": ball[:, 2], "n_views": 4, "reproj_rms_px": 0.5})
-    assert np.isnan(drop_ball_outliers(ball3d).loc[50, "z"])
+    kept = drop_ball_outliers(ball3d)
+    assert np.isnan(kept.loc[50, "z"]) and kept.loc[50, "n_views"] == 0
+    assert np.isfinite(kept.drop(index=50)[["x", "y", "z"]].to_numpy()).all()  # the flight around it stays
 
 
 def test_curation_agrees_with_the_twins_faults(run):

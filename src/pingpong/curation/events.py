@@ -212,19 +212,31 @@ def drop_ball_outliers(ball3d: pd.DataFrame, max_speed: float = 40.0, margin: fl
                        neighbours: int = 2, fs_hz: float = 100.0, causal: bool = False) -> pd.DataFrame:
     """ball3d with the samples no neighbour confirms set unseen (x, y, z NaN, n_views 0): a sample is
     kept when a seen sample within `neighbours` frames lies within max_speed (m/s, above a smash) * dt
-    + margin (m) of it. A triangulation onto a wrong pair of detections lands metres off its flight; an
-    isolated sample cannot be checked and is dropped too.
+    + margin (m) of it, and no seen sample between the two agrees (within its own gate) with the
+    neighbour but not with it. A triangulation onto a wrong pair of detections lands metres off its
+    flight; an isolated sample cannot be checked and is dropped too. The between-rule: a neighbour two
+    frames away may sit within the two-frame gate (0.85 m) of an outlier 0.77 m off its flight, while the
+    sample between them, on the flight, says which of the two is off (a twin session put such an outlier
+    at the net, where it made two spurious net crossings that cut the filter).
 
     causal: only the `neighbours` frames before a sample confirm it (rows in time order), so the decision
     on a frame never waits for later ones, as live. Its cost: the first sample after a gap of more than
     `neighbours` frames (and the session's first) has nothing to confirm it and is dropped as well."""
     xyz = ball3d[["x", "y", "z"]].to_numpy(float)
-    confirmed = np.zeros(len(xyz), bool)
-    for k in range(1, neighbours + 1):
-        step = np.linalg.norm(xyz[k:] - xyz[:-k], axis=1) <= max_speed * k / fs_hz + margin  # NaN: False
-        confirmed[k:] |= step
+    n = len(xyz)
+    # agree[k][a]: samples a and a + k are within the k-frame gate (NaN: False)
+    agree = {k: np.linalg.norm(xyz[k:] - xyz[:-k], axis=1) <= max_speed * k / fs_hz + margin
+             for k in range(1, neighbours + 1)}
+    confirmed = np.zeros(n, bool)
+    for k, pair in agree.items():
+        confirms_later, confirms_earlier = pair.copy(), pair.copy()
+        for m in range(1, k):  # the sample a + m between a and a + k
+            with_earlier, with_later = agree[m][:n - k], agree[k - m][m:n - k + m]
+            confirms_later &= ~(with_earlier & ~with_later)
+            confirms_earlier &= ~(with_later & ~with_earlier)
+        confirmed[k:] |= confirms_later
         if not causal:
-            confirmed[:-k] |= step
+            confirmed[:-k] |= confirms_earlier
     out = ball3d.copy()
     dropped = ~confirmed & np.isfinite(xyz).all(axis=1)
     out.loc[dropped, ["x", "y", "z"]] = np.nan
