@@ -54,6 +54,9 @@ def cost_rows(root: Path) -> list[tuple[str, str]]:
         rss = [p["max_rss_mb"] for p in parts if p.get("max_rss_mb")]
         rows += [("wall time", f"{wall / 3600:.2f} h in {len(parts)} part(s), from {parts[0]['started']}"
                   + (f"; {stopped} stopped before its end, timed to its last record" if stopped else "")),
+                 ("parts by commit", "; ".join(
+                     f"{p.get('commit') or 'commit not recorded'}: {p['wall_s'] / 3600:.2f} h from "
+                     f"{p['started']}" for p in parts)),
                  ("CPU time (user + system)", f"{cpu / 3600:.2f} h"
                   + ("" if len(timed) == len(parts) else f" over the {len(timed)} part(s) that recorded it")),
                  ("peak memory of one job", f"{max(rss) / 1024:.2f} GB" if rss else "not recorded")]

@@ -1,5 +1,6 @@
 """Runs a command and records its wall time, CPU time (user + system, of it and its children) and peak
-memory as one JSON line of a file, so that a run made in parts (a resumed Snakemake run) sums its parts:
+memory as one JSON line of a file, so that a run made in parts (a resumed Snakemake run, or a rerun of what
+a later commit changed) sums its parts; each part names the commit it ran (None outside a git checkout):
 
     .venv/bin/python analysis/timed_run.py TIMES.jsonl -- COMMAND [ARGS...]
 
@@ -33,6 +34,15 @@ def cpu_so_far(pid: int) -> tuple[float | None, float | None]:
     return (int(fields[11]) + int(fields[13])) / tick, (int(fields[12]) + int(fields[14])) / tick
 
 
+def head_commit() -> str | None:
+    """The working directory's checked-out commit, or None."""
+    try:
+        done = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
+    except OSError:  # no git
+        return None
+    return done.stdout.strip() or None if done.returncode == 0 else None
+
+
 def _key(part: dict) -> tuple:
     return part.get("started"), part.get("pid")
 
@@ -54,7 +64,7 @@ def main(argv: list[str]) -> int:
     child = subprocess.Popen(argv[2:])
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda signum, _frame: child.send_signal(signum))
-    part = {"started": started, "pid": child.pid, "command": argv[2:]}
+    part = {"started": started, "pid": child.pid, "commit": head_commit(), "command": argv[2:]}
     while True:
         try:
             code = child.wait(timeout=CHECKPOINT_S)

@@ -23,11 +23,15 @@ def _script(name: str):
 def test_timed_run_appends_a_part_per_run_and_passes_the_exit_status_on(tmp_path):
     times = tmp_path / "t.jsonl"
     script = str(ROOT / "analysis/timed_run.py")
-    ok = subprocess.run([sys.executable, script, str(times), "--", sys.executable, "-c", "sum(range(10**6))"])
-    bad = subprocess.run([sys.executable, script, str(times), "--", sys.executable, "-c", "exit(3)"])
+    ok = subprocess.run([sys.executable, script, str(times), "--", sys.executable, "-c", "sum(range(10**6))"],
+                        cwd=ROOT)
+    bad = subprocess.run([sys.executable, script, str(times), "--", sys.executable, "-c", "exit(3)"],
+                         cwd=tmp_path)
     assert (ok.returncode, bad.returncode) == (0, 3)
     parts = [json.loads(line) for line in times.read_text().splitlines()]
     assert [p["returncode"] for p in parts] == [0, 3]
+    head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True)
+    assert [p["commit"] for p in parts] == [head.stdout.strip() or None, None]  # tmp_path: not a checkout
     assert all(p["wall_s"] >= 0 and p["user_s"] >= 0 and p["max_rss_mb"] > 0 for p in parts)
 
 
@@ -88,6 +92,8 @@ def test_the_summary_sums_the_parts_and_reads_the_run(tiny_run, tmp_path):
          "max_rss_mb": 1024.0 * m, "returncode": 0}) for w, m in ((1800.0, 1), (5400.0, 2))))
     costs = dict(summary.cost_rows(root))
     assert costs["wall time"] == "2.00 h in 2 part(s), from 2026-12-05T01:00:00+00:00"
+    assert costs["parts by commit"] == ("commit not recorded: 0.50 h from 2026-12-05T01:00:00+00:00; "
+                                        "commit not recorded: 1.50 h from 2026-12-05T01:00:00+00:00")
     assert costs["CPU time (user + system)"] == "2.00 h" and costs["peak memory of one job"] == "2.00 GB"
     with (root / "paper_scale_times.jsonl").open("a") as times:  # a part killed before it recorded its CPU
         times.write("\n" + json.dumps({"started": "2026-12-05T04:00:00+00:00", "wall_s": 3600.0,

@@ -54,6 +54,27 @@ Measured on four twin cameras, 2 rallies each at 1440x1080, full resolution -> r
 100, 96.2 -> 96.5, 100 -> 100, 100 -> 100 %; median error 0.184 -> 0.193, 0.137 -> 0.167, 0.179 -> 0.182,
 0.154 -> 0.172 px; frame rate 1.04-1.07 of decoding alone, from 0.75.
 
+Skin at low JPEG quality: the skin test. At JPEG quality 75 (config/paper_hits.yaml, chosen for the disk)
+chroma quantisation rings where skin (H 8-10, S 95-140) meets a saturated blue shirt: a few pixels beside the
+arm or neck reach S 170-239 in the ball's hue, and the colour test took them for the ball in up to 22 % of a
+far camera's frames (s17 cam2 of the paper-scale run of 185cb7d; 47 of its 80 camera-sessions over 0.5 %).
+Against the twin's pixel truth, on 1,500 such false detections and 1,500 true ones of that stream, the mean
+saturation of a blob's 3 most saturated pixels (its core) was 189 (median; p95 203) on skin and 240 (p5
+212) on the ball; a far, washed ball can have a core of 185-200 too, but lies on a wall, floor or shirt. So a
+blob of the colour test is refused when it is small (at most 108 px at 1440 wide, 12 at 480: JPEG lifts a
+few pixels, a near ball's blob is larger) and has no ball's core (below S 205) and at least 8 % of the ring 2-3
+px around it is skin-coloured (H 5-14 from S 70; the 1-px rim, the ball's own blend, left out). The blur test
+still takes a tracked ball's blob where the colour test refused it. Measured against the detector before it
+(benchmarks/bench_detection_revisions.py --before 07d3156 --mcap ... --truth ..., on the paper-scale run's
+streams; recall counts detections within 5 px of the truth): s17 cam2 recall 90.23 -> 97.60 %, false
+detections 22.0 -> 0.65 % of frames; s02 cam2 88.27 -> 96.14, 21.7 -> 1.10; s07 cam2 92.62 -> 97.25, 17.7
+-> 0.62; s11 cam0 98.31 -> 99.01, 8.29 -> 0.05; s05 cam1 99.05 -> 99.20, 4.13 -> 0.04; s06 cam0 99.05 ->
+98.93, 1.02 -> 0.01; on streams with no skin problem s15 cam1 99.80 -> 99.69 (0 -> 0) and s19 cam3 98.36
+-> 98.28 (0.06 -> 0.02); a twin stream at quality 90 (the default run's) 100 -> 100 %, 0.13 -> 0 %.
+Chosen on s17 cam2, s15 cam1 and s19 cam3 among: the core alone at S 200 (s17 cam2 1.21 % false, 97.03 %
+recall; s15 cam1 99.44 %), the ring share at 15 % (2.27 % false) and the ring 3-4 or 4-6 px out (3.3 and
+7.3 % false: skin lifts lie at the skin's edge, so a farther ring falls on the shirt).
+
 Fast far balls: the blur test. A far ball (radius 1.5-2.5 px at 480x360) streaking 6-19 px a frame is
 smeared over its 4 ms exposure (twin.cameras) until no 4 px of it reach S 170: its saturation is washed to
 ~85-185. The colour test missed 29 of 2,746 visible balls of tests/test_detection.py's stream so, and
@@ -114,6 +135,9 @@ _SEAM_KERNEL = np.ones((5, 5), np.uint8)
 # Streams are searched and tracked on the image libjpeg decodes at 1/reduction (module docstring)
 DECODE_WIDTH_PX = 720  # px, the narrowest decoded image: 1/2 of REFERENCE_WIDTH
 CANDIDATE_AREA = 0.5  # of the minimum area: what a reduced blob keeps of a ball at the minimum area
+CORE_PX = 3  # pixels of a blob's saturated core (module docstring, "Skin at low JPEG quality")
+SKIN_HUE, SKIN_SATURATION_MIN = (5, 14), 70  # OpenCV HSV of skin around a blob (the twin's: H 8-10, S 95-140)
+_NEAR_KERNEL, _FAR_KERNEL = np.ones((3, 3), np.uint8), np.ones((7, 7), np.uint8)
 
 
 @dataclass(frozen=True)
@@ -124,6 +148,11 @@ class BallDetector:
     hue_max: int = 19
     saturation_min: int = 170  # 0..255
     value_min: int = 110  # 0..255
+    # skin lifted over the colour test (module docstring, "Skin at low JPEG quality"): a small blob on skin
+    # needs a ball's saturated core
+    core_saturation_min: int = 205  # 0..255: the mean of its CORE_PX most saturated pixels
+    skin_max_area_px: float = 108.0  # px at REFERENCE_WIDTH; larger blobs are near balls, not JPEG's lifts
+    skin_ring_share: float = 0.08  # of the ring 2-3 px around it in skin's colour (SKIN_HUE): on skin
     min_area_px: float = 36.0  # blob area bounds, px at REFERENCE_WIDTH (area scales with width^2)
     max_area_px: float = 900.0
     window_px: float = 200.0  # side of the square searched around the previous detection, px
@@ -177,12 +206,36 @@ def _blobs(mask: np.ndarray, min_area: float, max_area: float):
             yield x, y, w, h, blob, area
 
 
-def _largest_blob(mask: np.ndarray, min_area: float, max_area: float, hsv: np.ndarray, saturation_min: int):
+def _skin_without_core(hsv: np.ndarray, x: int, y: int, blob: np.ndarray, detector: BallDetector,
+                       width: int) -> bool:
+    """Whether a blob (mask at x, y of `hsv`) lies on skin (skin_ring_share of the ring 2-3 px around it
+    in SKIN_HUE from SKIN_SATURATION_MIN; the 1-px rim, the ball's own blend, left out) without a ball's
+    saturated core (its CORE_PX most saturated pixels below core_saturation_min on average)."""
+    rows, cols = np.nonzero(blob)
+    if len(rows) > detector.skin_max_area_px * (width / REFERENCE_WIDTH) ** 2:
+        return False
+    saturation = hsv[y + rows, x + cols, 1]
+    if np.partition(saturation, -CORE_PX)[-CORE_PX:].mean() >= detector.core_saturation_min:
+        return False
+    h, w = blob.shape
+    x0, y0 = max(x - 3, 0), max(y - 3, 0)
+    patch = hsv[y0:y + h + 3, x0:x + w + 3]
+    core = np.zeros(patch.shape[:2], np.uint8)
+    core[y - y0:y - y0 + h, x - x0:x - x0 + w] = blob
+    ring = cv2.dilate(core, _FAR_KERNEL) > cv2.dilate(core, _NEAR_KERNEL)
+    skin = cv2.inRange(patch, (SKIN_HUE[0], SKIN_SATURATION_MIN, 0), (SKIN_HUE[1], 255, 255)) > 0
+    return bool((skin & ring).sum() >= detector.skin_ring_share * ring.sum())
+
+
+def _largest_blob(mask: np.ndarray, min_area: float, max_area: float, hsv: np.ndarray, detector: BallDetector,
+                  width: int):
     """(bounding box x, y, w, h, blob mask (h, w) uint8 0/1, pixel count) of the largest blob within the
-    area bounds that is not a red/yellow seam (`_is_seam`), or None."""
+    area bounds that is neither a red/yellow seam (`_is_seam`) nor on skin without a ball's core
+    (`_skin_without_core`), or None."""
     best = None
     for x, y, w, h, blob, area in _blobs(mask, min_area, max_area):
-        if (best is None or area > best[5]) and not _is_seam(hsv, x, y, blob, saturation_min):
+        if (best is None or area > best[5]) and not _is_seam(hsv, x, y, blob, detector.saturation_min) \
+                and not _skin_without_core(hsv, x, y, blob, detector, width):
             best = (x, y, w, h, blob, area)
     return best
 
@@ -268,7 +321,7 @@ def detect_ball(image_bgr: np.ndarray, detector: BallDetector, previous_uv: tupl
     hsv = cv2.cvtColor(window, cv2.COLOR_BGR2HSV)
     mask = cv2.inRange(hsv, (detector.hue_min, detector.saturation_min, detector.value_min),
                        (detector.hue_max, 255, 255))
-    found = _largest_blob(mask, min_area, max_area, hsv, detector.saturation_min)
+    found = _largest_blob(mask, min_area, max_area, hsv, detector, image_bgr.shape[1])
     if found is None and previous_uv is not None and velocity is not None:
         expected = (previous_uv[0] + velocity[0] - x0, previous_uv[1] + velocity[1] - y0)
         found = _blurred_blob(hsv, detector, image_bgr.shape[1], expected, velocity)
@@ -308,7 +361,7 @@ def _upsampled_centre(image: np.ndarray, reduction: int, found, detector: BallDe
     hsv = cv2.cvtColor(window, cv2.COLOR_BGR2HSV)
     mask = cv2.inRange(hsv, (detector.hue_min, detector.saturation_min, detector.value_min),
                        (detector.hue_max, 255, 255))
-    blob = _largest_blob(mask, min_area * CANDIDATE_AREA, max_area, hsv, detector.saturation_min)
+    blob = _largest_blob(mask, min_area * CANDIDATE_AREA, max_area, hsv, detector, width)
     offset = (reduction - 1) / 2  # a reduced pixel averages reduction x reduction full ones: their centre
     if blob is None:  # the interpolation lost it: the reduced image's centre
         return reduction * found[0] + offset, reduction * found[1] + offset, found[2] * reduction**2
