@@ -55,25 +55,25 @@ Measured on four twin cameras, 2 rallies each at 1440x1080, full resolution -> r
 0.154 -> 0.172 px; frame rate 1.04-1.07 of decoding alone, from 0.75.
 
 Skin at low JPEG quality: the skin test. At JPEG quality 75 (config/paper_hits.yaml, chosen for the disk)
-chroma quantisation rings where skin (H 8-10, S 95-140) meets a saturated blue shirt: a few pixels beside the
-arm or neck reach S 170-239 in the ball's hue, and the colour test took them for the ball in up to 22 % of a
-far camera's frames (s17 cam2 of the paper-scale run of 185cb7d; 47 of its 80 camera-sessions over 0.5 %).
-Against the twin's pixel truth, on 1,500 such false detections and 1,500 true ones of that stream, the mean
-saturation of a blob's 3 most saturated pixels (its core) was 189 (median; p95 203) on skin and 240 (p5
-212) on the ball; a far, washed ball can have a core of 185-200 too, but lies on a wall, floor or shirt. So a
-blob of the colour test is refused when it is small (at most 108 px at 1440 wide, 12 at 480: JPEG lifts a
-few pixels, a near ball's blob is larger) and has no ball's core (below S 205) and at least 8 % of the ring 2-3
-px around it is skin-coloured (H 5-14 from S 70; the 1-px rim, the ball's own blend, left out). The blur test
-still takes a tracked ball's blob where the colour test refused it. Measured against the detector before it
-(benchmarks/bench_detection_revisions.py --before 07d3156 --mcap ... --truth ..., on the paper-scale run's
-streams; recall counts detections within 5 px of the truth): s17 cam2 recall 90.23 -> 97.60 %, false
-detections 22.0 -> 0.65 % of frames; s02 cam2 88.27 -> 96.14, 21.7 -> 1.10; s07 cam2 92.62 -> 97.25, 17.7
--> 0.62; s11 cam0 98.31 -> 99.01, 8.29 -> 0.05; s05 cam1 99.05 -> 99.20, 4.13 -> 0.04; s06 cam0 99.05 ->
-98.93, 1.02 -> 0.01; on streams with no skin problem s15 cam1 99.80 -> 99.69 (0 -> 0) and s19 cam3 98.36
--> 98.28 (0.06 -> 0.02); a twin stream at quality 90 (the default run's) 100 -> 100 %, 0.13 -> 0 %.
+chroma quantisation rings where skin (H 8-10, S 95-140) meets a saturated blue shirt: a few pixels beside
+the arm or neck reach S 170-239 in the ball's hue, and the colour test took them for the ball in up to 22 %
+of a far camera's frames (s17 cam2 of the paper-scale run of 185cb7d; 47 of its 80 camera-sessions over 0.5
+%). Against the twin's pixel truth, on 1,500 such false detections and 1,500 true ones of that stream, the
+mean saturation of a blob's 3 most saturated pixels (its core) was 189 (median; p95 203) on skin and 240 (p5
+212) on the ball; a far, washed ball can have a core of 185-200 too, but lies on a wall, floor or shirt. So
+a blob of the colour test is refused when it is small (at most 108 px at 1440 wide, 12 at 480: JPEG lifts a
+few pixels, a near ball's blob is larger) and has no ball's core (below S 205) and at least 8 % of the ring
+2-3 px around it is skin-coloured (H 5-14 from S 70; the 1-px rim, the ball's own blend, left out). The blur
+test still takes a tracked ball's blob where the colour test refused it. Measured against the detector
+before it (benchmarks/bench_detection_revisions.py --before 07d3156 --mcap ... --truth ..., on the
+paper-scale run's streams; recall counts detections within 5 px of the truth): s17 cam2 recall 90.23 ->
+97.60 %, false detections 22.0 -> 0.65 % of frames; s02 cam2 88.27 -> 96.14, 21.7 -> 1.10; s07 cam2 92.62 ->
+97.25, 17.7 -> 0.62; s11 cam0 98.31 -> 99.01, 8.29 -> 0.05; s05 cam1 99.05 -> 99.20, 4.13 -> 0.04; s06 cam0
+99.05 -> 98.93, 1.02 -> 0.01; on streams with no skin problem s15 cam1 99.80 -> 99.69 (0 -> 0) and s19 cam3
+98.36 -> 98.28 (0.06 -> 0.02); a twin stream at quality 90 (the default run's) 100 -> 100 %, 0.13 -> 0 %.
 Chosen on s17 cam2, s15 cam1 and s19 cam3 among: the core alone at S 200 (s17 cam2 1.21 % false, 97.03 %
-recall; s15 cam1 99.44 %), the ring share at 15 % (2.27 % false) and the ring 3-4 or 4-6 px out (3.3 and
-7.3 % false: skin lifts lie at the skin's edge, so a farther ring falls on the shirt).
+recall; s15 cam1 99.44 %), the ring share at 15 % (2.27 % false) and the ring 3-4 or 4-6 px out (3.3 and 7.3
+% false: skin lifts lie at the skin's edge, so a farther ring falls on the shirt).
 
 Fast far balls: the blur test. A far ball (radius 1.5-2.5 px at 480x360) streaking 6-19 px a frame is
 smeared over its 4 ms exposure (twin.cameras) until no 4 px of it reach S 170: its saturation is washed to
