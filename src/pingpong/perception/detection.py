@@ -171,13 +171,20 @@ class BallDetector:
         return self.min_area_px * scale**2, self.max_area_px * scale**2, half_window
 
 
-def _is_seam(hsv: np.ndarray, x: int, y: int, blob: np.ndarray, saturation_min: int) -> bool:
-    """Whether a blob (mask at x, y of `hsv`) lies on a red/yellow seam (see SEAM_RED_HUE)."""
+def _around(hsv: np.ndarray, x: int, y: int, blob: np.ndarray, margin: int):
+    """(x0, y0, patch, core) of a blob (mask at x, y of `hsv`): the patch of `hsv` `margin` px around it
+    (clipped to the image), at x0, y0, and the blob's mask (uint8 0/1) on that patch."""
     h, w = blob.shape
-    x0, y0 = max(x - 2, 0), max(y - 2, 0)
-    patch = hsv[y0:y + h + 2, x0:x + w + 2]
+    x0, y0 = max(x - margin, 0), max(y - margin, 0)
+    patch = hsv[y0:y + h + margin, x0:x + w + margin]
     core = np.zeros(patch.shape[:2], np.uint8)
     core[y - y0:y - y0 + h, x - x0:x - x0 + w] = blob
+    return x0, y0, patch, core
+
+
+def _is_seam(hsv: np.ndarray, x: int, y: int, blob: np.ndarray, saturation_min: int) -> bool:
+    """Whether a blob (mask at x, y of `hsv`) lies on a red/yellow seam (see SEAM_RED_HUE)."""
+    _, _, patch, core = _around(hsv, x, y, blob, 2)
     ring = (cv2.dilate(core, _SEAM_KERNEL) > core) & (patch[..., 1] >= saturation_min)
     hue = patch[..., 0]
     red = ring & ((hue <= SEAM_RED_HUE[0]) | (hue >= SEAM_RED_HUE[1]))
@@ -217,11 +224,7 @@ def _skin_without_core(hsv: np.ndarray, x: int, y: int, blob: np.ndarray, detect
     saturation = hsv[y + rows, x + cols, 1]
     if np.partition(saturation, -CORE_PX)[-CORE_PX:].mean() >= detector.core_saturation_min:
         return False
-    h, w = blob.shape
-    x0, y0 = max(x - 3, 0), max(y - 3, 0)
-    patch = hsv[y0:y + h + 3, x0:x + w + 3]
-    core = np.zeros(patch.shape[:2], np.uint8)
-    core[y - y0:y - y0 + h, x - x0:x - x0 + w] = blob
+    _, _, patch, core = _around(hsv, x, y, blob, 3)
     ring = cv2.dilate(core, _FAR_KERNEL) > cv2.dilate(core, _NEAR_KERNEL)
     skin = cv2.inRange(patch, (SKIN_HUE[0], SKIN_SATURATION_MIN, 0), (SKIN_HUE[1], 255, 255)) > 0
     return bool((skin & ring).sum() >= detector.skin_ring_share * ring.sum())
@@ -273,12 +276,7 @@ def _blurred_blob(hsv: np.ndarray, detector: BallDetector, width: int, expected_
 
 def _weighted_centre(hsv: np.ndarray, x: int, y: int, blob: np.ndarray) -> tuple[float, float]:
     """Saturation-weighted centroid (u, v) of a blob (mask at x, y of `hsv`) and its orange rim."""
-    h, w = blob.shape
-    x0, y0 = max(x - 1, 0), max(y - 1, 0)
-    x1, y1 = min(x + w + 1, hsv.shape[1]), min(y + h + 1, hsv.shape[0])
-    patch = hsv[y0:y1, x0:x1]
-    core = np.zeros(patch.shape[:2], np.uint8)
-    core[y - y0:y - y0 + h, x - x0:x - x0 + w] = blob
+    x0, y0, patch, core = _around(hsv, x, y, blob, 1)
     saturation = patch[..., 1].astype(np.float32)
     rim = core == 0
     background = np.median(saturation[rim]) if rim.any() else 0.0
