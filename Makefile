@@ -57,5 +57,9 @@ lint: $(VENV)/.installed-test
 report: setup
 	$(BIN)/snakemake --report reports/report.html
 
+# The derived artifacts, and of raw/ only what the twin wrote with that very content (its records in
+# raw/twin_truth/owned/): a lab's recordings stay, whatever their names (pingpong.common.raw_ownership;
+# standard library only, so it runs without the environment).
 clean:
-	rm -rf raw/* interim/* processed/* reports/tables/* reports/figures/* .snakemake
+	rm -rf interim/* processed/* reports/tables/* reports/figures/* reports/pages reports/report.html .snakemake
+	PYTHONPATH=src $(PYTHON) -m pingpong.common.raw_ownership clean

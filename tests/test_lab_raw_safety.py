@@ -106,8 +106,8 @@ def test_the_default_source_refuses_to_simulate_over_a_labs_recordings(lab_root)
     before = raw_digest(lab_root)
     proc = snakemake(lab_root, configfile="config/test/tiny.yaml", check=False)
     assert proc.returncode != 0
-    assert "were not written by the twin (no raw/twin_truth/rig.json)" in said(proc)
-    assert "set source: lab to run on them" in said(proc)
+    assert "files under raw/ were not written by the twin" in said(proc)
+    assert "set source: lab (the README's 'Bringing your lab's recordings')" in said(proc)
     assert raw_digest(lab_root) == before
 
 

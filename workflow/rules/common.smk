@@ -4,7 +4,8 @@ from pathlib import Path
 
 from pingpong.common.codehash import stage_code_hash
 from pingpong.common.stages import STAGE_SCRIPT as _SCRIPT
-from pingpong.io.lab_layout import CAMERA_SUFFIXES, lab_layout_problems, twin_over_recordings
+from pingpong.common.raw_ownership import RawOwnershipError, check as check_raw_ownership
+from pingpong.io.lab_layout import CAMERA_SUFFIXES, lab_layout_problems
 from pingpong.common.seeding import rng_for
 from pingpong.learning.grid import grid_configurations
 
@@ -65,17 +66,11 @@ def timestamp_files(session, cams):
 
 
 def session_cameras(session):
-    """The cameras recorded in a session: a lab session may lack one (>= 2 must remain)."""
+    """The cameras recorded in a session: lab.session_cameras for one recorded with fewer (check_raw_layout
+    makes every camera listed for a session have its recording before any job runs)."""
     if config["source"] == "twin":
         return cameras()
-    present = [c for c in cameras() if Path(camera_file(session, c)).exists()]
-    missing = sorted(set(cameras()) - set(present))
-    if len(present) < 2:
-        raise WorkflowError(f"session {session}: only {present} of the cameras {cameras()} have a stream "
-                            f"in raw/sessions/{session}/; at least two are needed to triangulate")
-    if missing:
-        logger.warning(f"session {session}: no stream for {missing}; triangulating with {present}")
-    return present
+    return config["lab"]["session_cameras"].get(session, cameras())
 
 
 def one_of(names):
@@ -161,17 +156,19 @@ def motive_take_start_ns(session):
 
 def check_raw_layout():
     """Under source: lab, every problem of raw/ against the config, before any job runs (no rule writes raw/
-    there, so anything missing could only fail later, one job at a time); under source: twin, a lab's
-    recordings that the twin would write over."""
+    there, so anything missing could only fail later, one job at a time); under source: twin, whose rules
+    write raw/, any file there that the twin did not write with its present content (common.raw_ownership)."""
     if config["source"] != "lab":
-        problems = twin_over_recordings(Path("."))
-        if problems:
-            raise WorkflowError(problems[0])
+        try:
+            check_raw_ownership(Path("."))
+        except RawOwnershipError as err:
+            raise WorkflowError(str(err)) from None
         return
     lab = config["lab"]
     problems = lab_layout_problems(Path("."), lab["sessions"], lab["cameras"],
                                    Path(optitrack_path("any")).name if has_optitrack() else None,
-                                   config["perception"]["calibration_import"], extrinsics_kind())
+                                   config["perception"]["calibration_import"], extrinsics_kind(),
+                                   lab["session_cameras"])
     if problems:
         raise WorkflowError("the lab's recordings under raw/ do not match the config:\n  - "
                             + "\n  - ".join(problems) + "\n(see the README's 'Bringing your lab's recordings')")

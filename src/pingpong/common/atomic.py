@@ -19,6 +19,10 @@ from pathlib import Path
 log = logging.getLogger(__name__)
 
 _PREFIX, _SUFFIX = ".", ".tmp"
+# Called as hook(temporary, final) just before a write is renamed into place: a job that writes raw/
+# records each file's hash there first (pingpong.common.raw_ownership.recording), so that whatever a
+# killed job left is still known as its own.
+BEFORE_RENAME: list = []
 # mkstemp's and mkdtemp's random part: 8 characters of tempfile's alphabet (lower-case letters, digits, _)
 _RANDOM = re.compile(r"[a-z0-9_]{8}")
 
@@ -72,6 +76,8 @@ def atomic_path(path: str | os.PathLike):
     try:
         yield Path(tmp)
         os.chmod(tmp, 0o666 & ~_umask())  # the block may have replaced the file: chmod after it
+        for hook in BEFORE_RENAME:
+            hook(Path(tmp), final)
         os.replace(tmp, final)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
@@ -97,6 +103,8 @@ def atomic_dir(path: str | os.PathLike):
     try:
         yield tmp
         os.chmod(tmp, 0o777 & ~_umask())
+        for hook in BEFORE_RENAME:
+            hook(tmp, final)
         if final.exists():
             shutil.rmtree(final)
         os.replace(tmp, final)

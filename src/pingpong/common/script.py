@@ -19,6 +19,7 @@ from pathlib import Path
 import pingpong
 from pingpong.common.artifacts import Provenance
 from pingpong.common.atomic import sweep_temporaries
+from pingpong.common.raw_ownership import recording
 from pingpong.common.stages import entry_file, entry_module
 from pingpong.common.stderr import fd2_onto
 
@@ -151,7 +152,8 @@ def run_rule(smk=None) -> None:
         logging.captureWarnings(True)
         sweep_outputs(ctx)
         try:
-            main(ctx)
+            with recording(ctx.stage, _paths(ctx.output)):
+                main(ctx)
         except Exception:  # into the log too, where Snakemake's error message sends the reader
             logging.exception("rule %s failed", ctx.stage)
             raise

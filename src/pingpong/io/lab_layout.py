@@ -45,8 +45,9 @@ def camera_recordings(folder: Path) -> dict[str, list[Path]]:
 
 
 def session_problems(root: Path, session: str, cameras: list[str], optitrack: str | None) -> list[str]:
-    """What is missing or misnamed in raw/sessions/{session}/: each camera's OpenPose folder beside its
-    recording, several recordings of one camera, the OptiTrack file (its name, None: none expected)."""
+    """What is missing or misnamed in raw/sessions/{session}/: each camera's recording (a camera without
+    one is an error, never a camera silently dropped), its OpenPose folder beside it, several recordings
+    of one camera, the OptiTrack file (its name, None: none expected)."""
     folder = root / "raw/sessions" / session
     if not folder.is_dir():
         return [f"raw/sessions/{session}/: no such folder (lab.sessions lists {session!r}); expected one "
@@ -55,6 +56,9 @@ def session_problems(root: Path, session: str, cameras: list[str], optitrack: st
     recordings = camera_recordings(folder)
     out = [f"raw/sessions/{session}/: several recordings of {cam}: {[p.name for p in files]}; keep one"
            for cam, files in recordings.items() if cam in cameras and len(files) > 1]
+    out += [f"raw/sessions/{session}/{cam}.*: missing; expected camera {cam}'s recording "
+            f"({'|'.join(CAMERA_SUFFIXES)}); a session recorded with fewer cameras lists its own in "
+            f"lab.session_cameras ({session}: [...])" for cam in cameras if cam not in recordings]
     for cam in (c for c in cameras if c in recordings):
         pose = folder / "openpose" / cam
         if not pose.is_dir() or not any(pose.iterdir()):
@@ -66,10 +70,22 @@ def session_problems(root: Path, session: str, cameras: list[str], optitrack: st
     return out
 
 
+def session_cameras_problems(sessions: list[str], cameras: list[str],
+                             by_session: dict[str, list[str]]) -> list[str]:
+    """lab.session_cameras: each a configured session, each of its cameras configured, two at least (to
+    triangulate)."""
+    out = [f"lab.session_cameras: {s!r} is not in lab.sessions" for s in by_session if s not in sessions]
+    for s, cams in by_session.items():
+        out += [f"lab.session_cameras: {s}: {c!r} is not in lab.cameras {cameras}" for c in cams
+                if c not in cameras]
+        if len(set(cams)) < 2:
+            out.append(f"lab.session_cameras: {s}: {cams}; at least two cameras are needed to triangulate")
+    return out
+
+
 def camera_name_problems(root: Path, sessions: list[str], cameras: list[str]) -> list[str]:
     """Configured cameras with a recording in no session while recordings of unlisted names are there:
-    misnamed (a camera absent from every session with no stranger beside it is only missing, which
-    session_cameras of the workflow allows while two remain); the error lists the files' names."""
+    misnamed, not only missing; the error lists the files' names."""
     found = {cam for s in sessions for cam in camera_recordings(root / "raw/sessions" / s)}
     absent = [c for c in cameras if c not in found]
     if not absent or found <= set(cameras):
@@ -106,11 +122,14 @@ def calibration_problems(root: Path, cameras: list[str], calibration_import: str
 
 
 def lab_layout_problems(root: Path, sessions: list[str], cameras: list[str], optitrack: str | None,
-                        calibration_import: str | None, extrinsics: str = "table_mat") -> list[str]:
+                        calibration_import: str | None, extrinsics: str = "table_mat",
+                        session_cameras: dict[str, list[str]] | None = None) -> list[str]:
     """Every problem of a lab's raw/ against the config, each naming the path and what belongs there
-    (extrinsics: the kind of perception.calibration_extrinsics)."""
-    root = Path(root)
+    (extrinsics: the kind of perception.calibration_extrinsics; session_cameras: lab.session_cameras,
+    the sessions recorded with fewer cameras)."""
+    root, by_session = Path(root), session_cameras or {}
     out = name_problems("cameras", cameras) + name_problems("sessions", sessions)
+    out += session_cameras_problems(sessions, cameras, by_session)
     if not sessions:
         out.append("lab.sessions: empty; list the sessions under raw/sessions/")
     try:
@@ -119,21 +138,5 @@ def lab_layout_problems(root: Path, sessions: list[str], cameras: list[str], opt
         out.append(str(err))
     out += camera_name_problems(root, sessions, cameras)
     for session in sessions:
-        out += session_problems(root, session, cameras, optitrack)
+        out += session_problems(root, session, by_session.get(session, cameras), optitrack)
     return out
-
-
-def twin_over_recordings(root: Path) -> list[str]:
-    """Under source: twin (the default), recordings in raw/ that the twin did not write: its rules would
-    write over them. The twin writes raw/twin_truth/rig.json before any recording, so recordings without
-    it are a lab's (or a damaged twin run's, which `make clean` clears)."""
-    root = Path(root)
-    if (root / "raw/twin_truth/rig.json").is_file():
-        return []
-    found = [p for folder in ("raw/sessions", "raw/calibration") for p in sorted((root / folder).rglob("*"))
-             if p.is_file()]
-    if not found:
-        return []
-    return [f"{found[0].relative_to(root)} and {len(found) - 1} more files under raw/ were not written by "
-            f"the twin (no raw/twin_truth/rig.json), and source: twin would write over them; set source: lab "
-            f"to run on them, or move them away to simulate"]

@@ -1,0 +1,219 @@
+"""What under raw/ the pipeline wrote itself, by content: the only files a rule or `make clean` may replace.
+
+A lab's recordings are irreplaceable, and a path says nothing about who wrote a file: a lab's session
+folder can carry a twin's name (`s00/openpose/cam0`), and a twin run leaves no mark on a lab's files.
+So every job whose outputs lie under raw/ (the twin's) records each file it writes with its SHA-256 in
+`raw/twin_truth/owned/`, and before any job runs (`check`, from the Snakefile, the dry run too) every file
+under raw/ must be one of those with the same content; `clean` removes only such files.
+
+Records, one pair per job (named by the rule and its outputs, so parallel jobs never share a file):
+- `{rule}-{key}.pending`: `sha256  path` lines (sha256sum's format), appended and synced just before
+  each write is renamed into place (`pingpong.common.atomic`'s hook), so a job killed between its
+  renames and its end still owns what it wrote;
+- `{rule}-{key}.json`: at the job's end, each output file's SHA-256 with its size, mtime, ctime and inode.
+  A file whose stat still equals those is taken as unchanged without reading it again, as git's index
+  does (copying, `cp -p`, `rsync -a` or any write changes the inode or ctime, which no user tool sets);
+  any other file is hashed and compared. The paper-scale raw/ is 28 GB: hashing it at every start of
+  Snakemake would cost minutes.
+
+Not counted as anyone's file: `.gitkeep` (the repository's), `.snakemake_timestamp` (Snakemake writes it
+into directory outputs) and the atomic writes' temporaries (`.NAME.XXXXXXXX.tmp`, swept by the job that
+left them). Standard library only: `make clean` runs it without the project's environment.
+"""
+
+import contextlib
+import hashlib
+import json
+import os
+import re
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+from pingpong.common import atomic
+from pingpong.common.hashing import file_sha256
+
+RAW = "raw"
+OWNED = "raw/twin_truth/owned"
+NOT_RECORDINGS = {".gitkeep", ".snakemake_timestamp"}
+_TEMPORARY = re.compile(r"\..+\.[a-z0-9_]{8}\.tmp")  # common.atomic's temporary names
+_SHOWN = 12  # files named in an error before "and N more"
+
+
+class RawOwnershipError(RuntimeError):
+    """Files under raw/ that the pipeline did not write, where it would write."""
+
+
+def _relative(path: str | os.PathLike, root: Path) -> str:
+    return Path(os.path.relpath(os.path.abspath(path), root)).as_posix()
+
+
+def under_raw(path: str | os.PathLike, root: Path = Path(".")) -> bool:
+    rel = _relative(path, Path(root).resolve())
+    return rel == RAW or rel.startswith(RAW + "/")
+
+
+def _stat_key(path: Path) -> list[int]:
+    st = path.stat()
+    return [st.st_size, st.st_mtime_ns, st.st_ctime_ns, st.st_ino]
+
+
+def _files_in(path: Path) -> Iterator[Path]:
+    """A file, or every file inside a folder (a symbolic link counts as a file and is never followed)."""
+    if path.is_file() or path.is_symlink():
+        yield path
+        return
+    for folder, dirs, files in os.walk(path):
+        links = [d for d in dirs if os.path.islink(os.path.join(folder, d))]
+        dirs[:] = sorted(d for d in dirs if d not in links and not _TEMPORARY.fullmatch(d))
+        for name in sorted(files + links):
+            if name not in NOT_RECORDINGS and not _TEMPORARY.fullmatch(name):
+                yield Path(folder, name)
+
+
+def _job_stem(stage: str, outputs: list[str]) -> str:
+    key = hashlib.sha256("\n".join(sorted(outputs)).encode()).hexdigest()[:16]
+    return f"{stage}-{key}"
+
+
+@contextlib.contextmanager
+def recording(stage: str, outputs: list[str], root: Path = Path(".")) -> Iterator[None]:
+    """Record what a job writes under raw/ (nothing when no output lies there): each file's hash before
+    its rename (the .pending file), then every output file's hash and stat once the job succeeds."""
+    root = Path(root).resolve()
+    mine = sorted(_relative(p, root) for p in outputs if under_raw(p, root))
+    if not mine:
+        yield
+        return
+    stem = root / OWNED / _job_stem(stage, mine)
+    stem.parent.mkdir(parents=True, exist_ok=True)
+
+    def before_rename(tmp: Path, final: Path) -> None:
+        if not under_raw(final, root):
+            return
+        lines = [f"{file_sha256(f)}  {_relative(final / f.relative_to(tmp), root)}\n"
+                 for f in _files_in(tmp)]
+        with open(stem.with_suffix(".pending"), "a") as out:
+            out.writelines(lines)
+            out.flush()
+            os.fsync(out.fileno())
+
+    atomic.BEFORE_RENAME.append(before_rename)
+    try:
+        yield
+    finally:
+        atomic.BEFORE_RENAME.remove(before_rename)
+    pending = _pending_hashes(stem.with_suffix(".pending"))
+    files = {}
+    for out in mine:
+        for f in _files_in(root / out):
+            rel = _relative(f, root)
+            files[rel] = [pending.get(rel) or file_sha256(f), *_stat_key(f)]
+    atomic.write_text_atomic(stem.with_suffix(".json"), json.dumps({"outputs": mine, "files": files}))
+    stem.with_suffix(".pending").unlink(missing_ok=True)
+
+
+def _pending_hashes(path: Path) -> dict[str, str]:
+    """The last hash recorded for each path in a .pending file."""
+    if not path.is_file():
+        return {}
+    pairs = (line.split("  ", 1) for line in path.read_text().splitlines() if "  " in line)
+    return {rel: sha for sha, rel in pairs}
+
+
+def owned(root: Path = Path(".")) -> tuple[dict[str, set[str]], dict[str, list[list[int]]]]:
+    """Every path the records list: the hashes it may have, and the stats it had when recorded."""
+    folder = Path(root) / OWNED
+    hashes: dict[str, set[str]] = {}
+    stats: dict[str, list[list[int]]] = {}
+    for path in sorted(folder.glob("*.json")) if folder.is_dir() else []:
+        for rel, (sha, *stat) in json.loads(path.read_text())["files"].items():
+            hashes.setdefault(rel, set()).add(sha)
+            stats.setdefault(rel, []).append(stat)
+    for path in sorted(folder.glob("*.pending")) if folder.is_dir() else []:
+        for rel, sha in _pending_hashes(path).items():
+            hashes.setdefault(rel, set()).add(sha)
+    return hashes, stats
+
+
+def is_owned(path: Path, rel: str, hashes: dict, stats: dict) -> bool:
+    if rel not in hashes:
+        return False
+    return _stat_key(path) in stats.get(rel, []) or file_sha256(path) in hashes[rel]
+
+
+def foreign_files(root: Path = Path(".")) -> list[str]:
+    """The files under raw/ that no record lists with their present content (the records excepted)."""
+    root = Path(root)
+    hashes, stats = owned(root)
+    files = ((f, _relative(f, root.resolve())) for f in _files_in(root / RAW))
+    return [rel for f, rel in files
+            if not rel.startswith(OWNED + "/") and not is_owned(f, rel, hashes, stats)]
+
+
+def check(root: Path = Path(".")) -> None:
+    """Stop, naming the files, when raw/ holds anything the pipeline did not write (source: twin, whose
+    rules write raw/: before any job runs)."""
+    foreign = foreign_files(root)
+    if not foreign:
+        return
+    more = f"\n  ... and {len(foreign) - _SHOWN} more" if len(foreign) > _SHOWN else ""
+    raise RawOwnershipError(
+        f"{len(foreign)} files under raw/ were not written by the twin (or were changed since; "
+        f"records in {OWNED}/), and source: twin writes raw/:\n  "
+        + "\n  ".join(foreign[:_SHOWN]) + more
+        + "\nNothing was run. To run on these recordings, set source: lab (the README's 'Bringing your lab's "
+        "recordings'); to simulate, move them out of raw/ first.")
+
+
+def clean(root: Path = Path(".")) -> tuple[list[str], list[str]]:
+    """Remove the files under raw/ that the records list with their present content, then the records and
+    the folders left empty; everything else stays. Returns (removed, kept)."""
+    root = Path(root)
+    hashes, stats = owned(root)
+    removed, kept = [], []
+    for f in list(_files_in(root / RAW)):
+        rel = _relative(f, root.resolve())
+        if rel.startswith(OWNED + "/"):
+            continue
+        if is_owned(f, rel, hashes, stats):
+            f.unlink()
+            removed.append(rel)
+        else:
+            kept.append(rel)
+    for record in sorted((root / OWNED).glob("*")) if (root / OWNED).is_dir() else []:
+        record.unlink()
+    _remove_emptied_folders(root / RAW, {(root / r).parent for r in removed} | {root / OWNED})
+    return removed, kept
+
+
+def _remove_emptied_folders(top: Path, folders: set[Path]) -> None:
+    """The folders that clean emptied, and their parents up to `top` (which stays) while they hold nothing
+    but Snakemake's timestamp: a folder the lab made and left empty is the lab's."""
+    for folder in sorted(folders, key=lambda p: -len(p.parts)):
+        while folder != top and folder.is_dir() and not folder.is_symlink() \
+                and set(os.listdir(folder)) <= {".snakemake_timestamp"}:
+            (folder / ".snakemake_timestamp").unlink(missing_ok=True)
+            folder.rmdir()
+            folder = folder.parent
+
+
+def main(argv: list[str]) -> int:
+    """`python -m pingpong.common.raw_ownership clean|check [ROOT]` (make clean runs `clean`)."""
+    if not argv or argv[0] not in ("clean", "check"):
+        print(main.__doc__, file=sys.stderr)
+        return 2
+    root = Path(argv[1] if len(argv) > 1 else ".")
+    if argv[0] == "check":
+        foreign = foreign_files(root)
+        print("\n".join(foreign) or "every file under raw/ was written by the twin")
+        return 1 if foreign else 0
+    removed, kept = clean(root)
+    print(f"removed the twin's {len(removed)} files under raw/; kept {len(kept)} files it did not write"
+          + "".join(f"\n  kept {k}" for k in kept[:_SHOWN])
+          + (f"\n  ... and {len(kept) - _SHOWN} more" if len(kept) > _SHOWN else ""))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
