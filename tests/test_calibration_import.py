@@ -220,10 +220,10 @@ def test_opencv_missing_key_names_file_camera_and_key(tmp_path):
 
 @pytest.mark.parametrize(("old", "new", "message"), [
     ("[cam_1]", "[cam_1", r"calibration\.toml: not valid TOML"),
-    ("size = [ 1280, 720,]", "size = [ 1280,]", r"\[cam_1\]: size must be \[width, height\]"),
-    ("rotation = [ 0.0, 0.0, 0.0,]", "rotation = [ 0.0, 0.0,]", r"\[cam_1\]: rotation must"),
+    ("size = [ 1280, 720,]", "size = [ 1280,]", r"\[cam_1\]: key 'size': must be \[width, height\]"),
+    ("rotation = [ 0.0, 0.0, 0.0,]", "rotation = [ 0.0, 0.0,]", r"\[cam_1\]: key 'rotation': rotation must"),
     ("distortions = [ 0.0, 0.0, 0.0, 0.0, 0.0,]", "distortions = [ 0.0, 0.0, 0.0, 0.0, 0.0, 0.1,]",
-     r"\[cam_1\]: distortion needs 4 or 5"),
+     r"\[cam_1\]: key 'distortions': distortion needs 4 or 5"),
     ('name = "B"', 'name = "B"\nfisheye = true', r"\[cam_1\]: fisheye"),
     ("error = 0.0", 'error = 0.0\nunits = "m"', r"states units 'm' but 'mm'"),
 ])
@@ -255,38 +255,48 @@ def test_not_a_rotation_is_refused(tmp_path):
     path = tmp_path / "c.json"
     path.write_text('{"cameras": [{"K": [1, 0, 0, 0, 1, 0, 0, 0, 1], "D": [0, 0, 0, 0], '
                     '"R": [[2, 0, 0], [0, 1, 0], [0, 0, 1]], "t": [0, 0, 1], "size": [10, 10]}]}')
-    with pytest.raises(ValueError, match=r"c\.json: cameras\[0\]: rotation is not orthonormal"):
+    with pytest.raises(ValueError, match=r"c\.json: cameras\[0\]: key 'R': rotation is not orthonormal"):
         read_opencv_calibration(path, units="m")
 
 
 # Issue 37: implausible values that were read as cameras; each now a CalibrationFileError naming the camera
-TOML_WRONG_VALUES = [
-    ("size = [ 1280, 720,]", "size = [ 0, 0,]", r"image size must be whole pixels from 1 to 65535"),
-    ("size = [ 1280, 720,]", "size = [ 1280.5, 720,]", r"image size must be whole pixels"),
-    ("size = [ 1280, 720,]", 'size = [ "1280", 720,]', r"image size: expected numbers, got '1280'"),
-    ("size = [ 1280, 720,]", "size = 1280", r"size must be \[width, height\], got 1280"),
-    ("[ 900.0, 0.0, 640.0,]", "[ nan, 0.0, 640.0,]", r"camera matrix: expected finite numbers"),
-    ("[ 900.0, 0.0, 640.0,]", "[ -1.0, 0.0, 640.0,]", r"focal lengths fx -1, fy 900: expected positive"),
-    ("[ 900.0, 0.0, 640.0,]", "[ 0.0, 0.0, 640.0,]", r"focal lengths fx 0, fy 900: expected positive"),
-    ("[ 900.0, 0.0, 640.0,]", "[ 90.0, 0.0, 640.0,]", r"focal lengths fx 90, fy 900: .* factor of 2"),
-    ("[ 900.0, 0.0, 640.0,]", "[ true, 0.0, 640.0,]", r"camera matrix: expected numbers, got True"),
-    ("[ 900.0, 0.0, 640.0,]", "[ 900.0, 0.0, 6400.0,]", r"principal point \(6400, 360\) outside the "
-                                                        r"1280x720"),
-    ("[ 0.0, 0.0, 1.0,],]\ndistortions = [ 0.0", "[ 0.0, 1.0, 1.0,],]\ndistortions = [ 0.0",
+TOML_WRONG_VALUES = [  # (old, new, the key named, message)
+    ("size = [ 1280, 720,]", "size = [ 0, 0,]", "size", r"image size must be whole pixels from 1 to 65535"),
+    ("size = [ 1280, 720,]", "size = [ 1280.5, 720,]", "size", r"image size must be whole pixels"),
+    ("size = [ 1280, 720,]", 'size = [ "1280", 720,]', "size", r"image size: expected numbers, got '1280'"),
+    ("size = [ 1280, 720,]", "size = 1280", "size", r"must be \[width, height\], got 1280"),
+    ("[ 900.0, 0.0, 640.0,]", "[ nan, 0.0, 640.0,]", "matrix", r"camera matrix: expected finite numbers"),
+    ("[ 900.0, 0.0, 640.0,]", "[ -1.0, 0.0, 640.0,]", "matrix", r"focal lengths fx -1, fy 900: expected"),
+    ("[ 900.0, 0.0, 640.0,]", "[ 0.0, 0.0, 640.0,]", "matrix", r"focal lengths fx 0, fy 900: expected"),
+    ("[ 900.0, 0.0, 640.0,]", "[ 90.0, 0.0, 640.0,]", "matrix", r"focal lengths fx 90, fy 900: .* factor"),
+    ("[ 900.0, 0.0, 640.0,]", "[ true, 0.0, 640.0,]", "matrix", r"camera matrix: expected numbers, got True"),
+    ("[ 900.0, 0.0, 640.0,]", "[ 900.0, 0.0, 6400.0,]", "matrix",
+     r"principal point \(6400, 360\) outside the 1280x720"),
+    ("[ 0.0, 0.0, 1.0,],]\ndistortions = [ 0.0", "[ 0.0, 1.0, 1.0,],]\ndistortions = [ 0.0", "matrix",
      r"camera matrix must be \[\[fx, s, cx\], \[0, fy, cy\], \[0, 0, 1\]\]"),
-    ("[ 0.0, 900.0, 360.0,]", "[ 0.0, 900.0,]", r"camera matrix: rows of unequal length"),
-    ("rotation = [ 0.0, 0.0, 0.0,]", "rotation = [ inf, 0.0, 0.0,]", r"rotation: expected finite numbers"),
-    ("translation = [ 0.0, 0.0, 0.0,]", "translation = [ 0.0, nan, 0.0,]", r"translation: expected finite"),
-    ('name = "B"', "name = 2", r"name must be a string, got 2"),
+    ("[ 0.0, 900.0, 360.0,]", "[ 0.0, 900.0,]", "matrix", r"camera matrix: rows of unequal length"),
+    ("rotation = [ 0.0, 0.0, 0.0,]", "rotation = [ inf, 0.0, 0.0,]", "rotation",
+     r"rotation: expected finite numbers"),
+    ("translation = [ 0.0, 0.0, 0.0,]", "translation = [ 0.0, nan, 0.0,]", "translation",
+     r"translation: expected finite"),
+    ("translation = [ 0.0, 0.0, 0.0,]", "translation = [ 0.0, 0.0,]", "translation",
+     r"need a 3-vector translation, got 2 values"),
 ]
 
 
-@pytest.mark.parametrize(("old", "new", "message"), TOML_WRONG_VALUES)
-def test_anipose_implausible_values_are_refused(tmp_path, old, new, message):
+@pytest.mark.parametrize(("old", "new", "key", "message"), TOML_WRONG_VALUES)
+def test_anipose_implausible_values_are_refused(tmp_path, old, new, key, message):
     path = tmp_path / "calibration.toml"
     assert old in ANIPOSE_SNIPPET
     path.write_text(ANIPOSE_SNIPPET.replace(old, new))
-    with pytest.raises(CalibrationFileError, match=r"calibration\.toml: \[cam_1\]: " + message):
+    with pytest.raises(CalibrationFileError, match=rf"calibration\.toml: \[cam_1\]: key '{key}': " + message):
+        read_anipose_toml(path, units="mm")
+
+
+def test_anipose_camera_name_must_be_a_string(tmp_path):
+    path = tmp_path / "calibration.toml"
+    path.write_text(ANIPOSE_SNIPPET.replace('name = "B"', "name = 2"))
+    with pytest.raises(CalibrationFileError, match=r"toml: \[cam_1\]: name must be a string, got 2"):
         read_anipose_toml(path, units="mm")
 
 
@@ -308,12 +318,14 @@ OPENCV_WRONG_VALUES = [  # in the hand-written YAML's camera 'left' (K an !!open
     ("      cols: 3\n", "", r"key 'K': a map with keys \['data', 'dt', 'rows'\] where a matrix"),
     ("[ 900., 0., 640.,", "[ 0., 640.,", r"key 'K': matrix of 3x3: expected a list of 9 numbers as data, "
                                           r"got 8"),
-    ("[ 900., 0., 640.,", "[ .nan, 0., 640.,", r"camera matrix: expected finite numbers"),
-    ("[ 900., 0., 640.,", "[ -1., 0., 640.,", r"focal lengths fx -1, fy 901: expected positive"),
+    ("[ 900., 0., 640.,", "[ .nan, 0., 640.,", r"key 'K': camera matrix: expected finite numbers"),
+    ("[ 900., 0., 640.,", "[ -1., 0., 640.,", r"key 'K': focal lengths fx -1, fy 901: expected positive"),
     ("[ 900., 0., 640.,", "[ null, 0., 640.,", r"key 'K': an empty entry where a number"),
     ("[ 900., 0., 640.,", '[ "900", 0., 640.,', r"key 'K': matrix data: expected numbers"),
-    ("image_size: [ 1280, 720 ]", "image_size: [ 0, 0 ]", r"image size must be whole pixels from 1"),
-    ("D: [ -0.1, 0.02, 0., 0. ]", "D: [ -0.1, .inf, 0., 0. ]", r"distortion: expected finite numbers"),
+    ("image_size: [ 1280, 720 ]", "image_size: [ 0, 0 ]", r"key 'image_size': image size must be whole"),
+    ("image_size: [ 1280, 720 ]", "image_size: [ 1280 ]", r"key 'image_size': image size must be \[width, "),
+    ("D: [ -0.1, 0.02, 0., 0. ]", "D: [ -0.1, .inf, 0., 0. ]", r"key 'D': distortion: expected finite"),
+    ("t: [ 0.1, 0.2, 3. ]", "t: [ 0.1, 0.2 ]", r"key 't': need a 3-vector translation, got 2 values"),
     ("t: [ 0.1, 0.2, 3. ]", "t: [ [ [ 0.1 ] ], 0.2, 3. ]", r"key 't': lists nested deeper than"),
 ]
 
@@ -325,6 +337,57 @@ def test_opencv_implausible_values_and_matrix_headers_are_refused(tmp_path, old,
     assert old in text
     path.write_text(text.replace(old, new))
     with pytest.raises(CalibrationFileError, match=r"calib\.yml: left: " + message):
+        read_opencv_calibration(path, units="mm")
+
+
+# Issue 48: a held-out fuzz run's findings, read as cameras without a word; each now a CalibrationFileError
+
+
+def test_a_toml_distortion_one_value_short_is_named(tmp_path):
+    """[k1 k2 p1 p2 k3] with one value lost reads as a valid 4-coefficient model: the cameras must agree."""
+    path = tmp_path / "calibration.toml"
+    path.write_text(ANIPOSE_SNIPPET.replace("distortions = [ 0.0, 0.0, 0.0, 0.0, 0.0,]",
+                                            "distortions = [ 0.0, 0.0, 0.0, 0.0,]"))
+    with pytest.raises(CalibrationFileError, match=r"calibration\.toml: \[cam_1\]: key 'distortions': 4 "
+                                                   r"distortion coefficients where \[cam_0\] has 5; "
+                                                   "expected 5 for every camera of the file"):
+        read_anipose_toml(path, units="mm")
+
+
+def test_a_plain_list_distortion_one_value_short_is_named(tmp_path):
+    """The same in OpenCV JSON where the distortion is a plain list (no matrix header declares its count);
+    the hand-written YAML's matrix of 8 beside a list of 4 stays readable (test above)."""
+    camera = '"K": [900, 0, 640, 0, 900, 360, 0, 0, 1], "R": [0, 0, 0], "size": [1280, 720]'
+    path = tmp_path / "c.json"
+    path.write_text(f'{{"a": {{{camera}, "D": [0.1, 0, 0, 0, 0], "t": [0, 0, 3]}}, '
+                    f'"b": {{{camera}, "D": [0.1, 0, 0, 0], "t": [1, 0, 3]}}}}')
+    with pytest.raises(CalibrationFileError, match=r"c\.json: b: key 'D': 4 distortion coefficients where a "
+                                                   "has 5; expected 5"):
+        read_opencv_calibration(path, units="m")
+
+
+def test_two_toml_cameras_of_one_name_are_named(tmp_path):
+    path = tmp_path / "calibration.toml"
+    path.write_text(ANIPOSE_SNIPPET.replace('name = "B"', 'name = "A"'))
+    with pytest.raises(CalibrationFileError, match=r"calibration\.toml: two cameras named 'A' "
+                                                   r"\(\[cam_0\] and \[cam_1\]\); expected each name once"):
+        read_anipose_toml(path, units="mm")
+
+
+@pytest.mark.parametrize("layout", ["sequence", "top-level maps"])
+def test_two_opencv_cameras_of_one_name_are_named(tmp_path, layout):
+    """A 'cameras' sequence naming one camera twice, or one top-level key twice (FileStorage keeps both
+    and reads the first)."""
+    path = tmp_path / "calib.yml"
+    if layout == "sequence":
+        export_opencv_yaml(random_cameras(np.random.default_rng(8), 3), path, units="mm")
+        path.write_text(path.read_text().replace("name: cam2", "name: cam0"))
+        places = r"cameras\[0\] and cameras\[2\]"
+    else:
+        path.write_text(HAND_WRITTEN_YAML.replace("right:", "left:"))
+        places = "left and left"
+    name = "cam0" if layout == "sequence" else "left"
+    with pytest.raises(CalibrationFileError, match=rf"calib\.yml: two cameras named '{name}' \({places}\)"):
         read_opencv_calibration(path, units="mm")
 
 

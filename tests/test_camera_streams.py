@@ -342,6 +342,9 @@ def test_timestamp_csv_with_a_row_too_few(tmp_path, read):
     ("frame,time_ns\n0,1\n1,\n", r"row 2 has time_ns nan, expected an integer \(ns\)"),
     ("time_ns\n1\n3\n2\n", r"row 3 has time_ns 2, not after row 2's 3; expected strictly increasing"),
     ("time_ns\n5\n5\n", r"row 2 has time_ns 5, not after row 1's 5; expected strictly increasing"),
+    # issue 48: an OverflowError naming no file
+    ("time_ns\n5\n99999999999999999999\n", r"row 2: time_ns 99999999999999999999 does not fit int64"),
+    ("time_ns\n-9223372036854775809\n5\n", r"row 1: time_ns -9223372036854775809 does not fit int64"),
 ])
 def test_bad_timestamp_csv(tmp_path, text, message):
     path = write_video(tmp_path / "cam0.mp4", "mpeg4")
@@ -437,3 +440,31 @@ def test_a_damaged_message_definition_is_named(tmp_path, old, new, error):
     with pytest.raises(CameraStreamError, match=rf"damaged\.mcap: the message definition of /cam0/image_raw "
                                                 rf"\(sensor_msgs/msg/Image\) does not parse \({error}"):
         read_all(path)
+
+
+# Issue 48: a held-out fuzz run's findings, each now a CameraStreamError naming the file and the frame
+
+
+@pytest.mark.parametrize("read", READERS)
+def test_a_ros2_stamp_of_a_second_or_more_of_nanosec_is_named(tmp_path, read):
+    """builtin_interfaces/Time keeps whole seconds in sec: nanosec 1.5e9 moved the frame 1.5 s without a
+    word."""
+    messages = [raw_message(i, t, "bgr8") for i, t in enumerate(TIMES)]
+    messages[2]["header"]["stamp"]["nanosec"] += 1_500_000_000
+    stamp = messages[2]["header"]["stamp"]
+    log_time = stamp["sec"] * 1_000_000_000 + stamp["nanosec"] + 3_000_000 + 137_000 * 2  # as write_bag
+    path = write_bag(tmp_path / "bag.mcap", "sensor_msgs/msg/Image", IMAGE_MSGDEF,
+                     {"/cam0/image_raw": messages})
+    with pytest.raises(CameraStreamError, match=rf"bag\.mcap: frame 2 \(log_time {log_time} ns\) on "
+                                                rf"/cam0/image_raw: header stamp nanosec {stamp['nanosec']}; "
+                                                r"expected 0 to 999999999"):
+        read(path)
+
+
+@pytest.mark.parametrize("read", READERS)
+def test_video_times_beyond_int64_are_named(tmp_path, read):
+    """A start_ns near the end of int64 gave an OverflowError naming no file (open_camera_stream)."""
+    path = write_video(tmp_path / "cam0.mp4", "mpeg4")
+    with pytest.raises(CameraStreamError, match=r"cam0\.mp4: frame 1: start_ns \+ pts x time_base "
+                                                r"\(1/\d+ s\) = \d+ does not fit int64"):
+        read(path, start_ns=2**63 - 1)

@@ -6,7 +6,8 @@ files) and wrong values put in place of a number (NaN, infinity, strings, boolea
 CalibrationFileError naming the file, or the undamaged cameras. Silent changes only where a text format
 cannot tell, counted apart:
 - `numbers`: the damage only changed digits, signs, points or separators, and what it made still reads
-  as numbers that pass the checks (a plausible digit changed, a 5-coefficient distortion left with 4);
+  as numbers that pass the checks (a plausible digit changed; a 5-coefficient distortion left with 4 only
+  in a file of one camera, where no other camera's count tells: issue 48);
 - `names`: only a camera's name changed (text; the calibration stage refuses a name the config lacks);
 - `cut`: a truncation at a camera's end leaves the first cameras whole (YAML and TOML have no end
   marker; the stage refuses a configured camera that the file lacks).
@@ -139,3 +140,40 @@ def test_a_wrong_matrix_header_is_a_clean_error_never_a_crash(reader, tmp_path, 
     assert result.outcome(path, None) == "clean_error", result
     # where FileStorage parses it (`cols: x` is not JSON, `dt: 3d` not YAML to it), the key is named
     assert "cameras[0]: key 'camera_matrix'" in result.error or "not a readable OpenCV" in result.error
+
+
+# Issue 48: a held-out fuzz run's findings
+
+
+DEEP = 200_000
+NESTED = {"yaml": "%YAML:1.0\n---\ncameras: " + "[" * DEEP + "]" * DEEP + "\n",
+          "json": '{"cameras": ' + "[" * DEEP + "]" * DEEP + "}",
+          "toml": "[cam_0]\nmatrix = " + "[" * DEEP + "]" * DEEP + "\n"}
+
+
+@pytest.mark.parametrize("fmt", ["yaml", "json", "toml"])
+def test_a_file_nested_200000_deep_is_a_clean_error(reader, tmp_path, fmt):
+    """Every parser's depth limit (FileStorage's own, tomllib's and json's RecursionError) is the reader's
+    error naming the file."""
+    path = tmp_path / f"calibration.{fmt}"
+    path.write_text(NESTED[fmt])
+    result = reader.call(SUMMARY, path, fmt)
+    assert result.outcome(path, None) == "clean_error", result
+    assert "CalibrationFileError" in result.error and ("nested" in result.error.lower()), result.error
+
+
+@pytest.mark.parametrize("fmt", ["yaml", "json", "toml"])
+def test_a_value_deleted_from_any_array_is_a_clean_error(reader, tmp_path, fmt):
+    """Each number of an exported rig deleted in turn, with its separator: never read as cameras (a TOML
+    distortion one value short was, as a 4-coefficient model); where the file still parses, the error
+    names the camera and the key."""
+    data = rig_file(tmp_path, fmt).read_bytes()
+    body = data.index(b"cameras") if fmt != "toml" else 0  # past the YAML header's version number
+    path = tmp_path / f"short.{fmt}"
+    for m in NUMBER.finditer(data, body):
+        end = m.end() + len(re.match(rb"[, ]*", data[m.end():]).group())
+        path.write_bytes(data[:m.start()] + data[end:])
+        result = reader.call(SUMMARY, path, fmt)
+        assert result.outcome(path, None) == "clean_error", (data[m.start() - 40:end], result)
+        if "not valid TOML" not in result.error and "not a readable OpenCV" not in result.error:
+            assert re.search(r"(\[cam_\d\]|cameras\[\d\]): keys? '", result.error), result.error

@@ -4,10 +4,12 @@ or the undamaged poses; silently changed poses only in a Motive CSV where one te
 another plausible one (the format carries no check), counted apart."""
 
 import numpy as np
+import pytest
 from fuzz_util import damaged, record
 from test_paddle_resample import swing, write_motive_csv
 
 from pingpong.io.mcap_io import OptitrackWriter
+from pingpong.io.optitrack import OptitrackError, read_optitrack_poses
 
 SUMMARY = "test_fuzz_optitrack:poses_summary"
 EXAMPLES = 150
@@ -92,3 +94,35 @@ def test_fuzz_motive_csv(reader, tmp_path):
     assert not bad, bad[:3]
     # silent only where one text number became another plausible one (a digit of a position, say)
     assert counts["silent_wrong"] <= 0.2 * EXAMPLES
+
+
+# Issue 48: a held-out fuzz run's findings, each now an OptitrackError naming the file and the line
+
+
+def test_two_motive_bodies_of_one_name_are_an_error(tmp_path):
+    path = motive_csv(tmp_path / "take.csv")
+    path.write_text(path.read_text().replace("PaddleBlack", "PaddleRed"))
+    with pytest.raises(OptitrackError, match=r"take\.csv: the Name line: two rigid bodies named 'PaddleRed' "
+                                             r"\(ID 1 and ID 2\); expected each name once"):
+        read_optitrack_poses(path, take_start_ns=T0)
+
+
+@pytest.mark.parametrize("seconds", ["1e300", "9300000000.0"])
+def test_a_motive_time_beyond_int64_is_named(tmp_path, seconds):
+    """An OverflowError naming no file: 1e300 s is infinite in ns, 9.3e9 s beyond int64's 292 years."""
+    path = motive_csv(tmp_path / "take.csv")
+    lines = path.read_text().splitlines(keepends=True)
+    cells = lines[9].split(",")  # the third data line
+    lines[9] = ",".join([cells[0], seconds, *cells[2:]])
+    path.write_text("".join(lines))
+    with pytest.raises(OptitrackError, match=rf"take\.csv: line 10: time '{seconds}' s in ns: \S+ does not "
+                                             "fit int64"):
+        read_optitrack_poses(path, take_start_ns=T0)
+
+
+def test_a_take_start_that_overflows_the_times_is_named(tmp_path):
+    """lab.motive_take_start_ns added to the take's times wrapped round to negative times without a word."""
+    path = motive_csv(tmp_path / "take.csv")
+    with pytest.raises(OptitrackError, match=r"take\.csv: the take's time 0 ns \+ lab.motive_take_start_ns "
+                                             rf"{2**63} = {2**63} does not fit int64"):
+        read_optitrack_poses(path, take_start_ns=2**63)

@@ -5,6 +5,7 @@ import cv2
 import numpy as np
 import pytest
 from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
+from foxglove_schemas_protobuf.PoseInFrame_pb2 import PoseInFrame
 from mcap.reader import SeekingReader, make_reader
 from mcap.writer import IndexType
 from mcap.writer import Writer as McapWriter
@@ -245,3 +246,50 @@ def test_a_zeroed_chunk_of_frames_warns(camera_file):
         assert list(read_camera_stream(camera_file)) == []
     with pytest.raises(McapDamagedError, match=r"cam2\.mcap: /cam2/image: 0 of the 300 messages"):
         list(read_camera_stream(camera_file, strict=True))
+
+
+# Issue 48: a held-out fuzz run's findings; each now an McapDamagedError naming the file and the message
+
+
+@pytest.mark.parametrize("read", [read_camera_times, lambda path: list(read_camera_stream(path))])
+def test_a_log_time_beyond_int64_is_named(tmp_path, read):
+    """MCAP log_times are uint64: 2**63 became an OverflowError naming no file (the index's times) or
+    wrapped round to a negative time (the streamed ones)."""
+    path = tmp_path / "cam2.mcap"
+    with CameraStreamWriter(path, 2, "cam2") as writer:
+        for i in range(4):
+            writer.add(2**63 - 2 + i, jpeg(i))
+    with pytest.raises(McapDamagedError, match=rf"cam2\.mcap: message 2( on /cam2/image)?: log_time {2**63} "
+                                               r"does not fit int64; expected int64 ns"):
+        read(path)
+
+
+def test_an_optitrack_log_time_beyond_int64_is_named(tmp_path):
+    path = tmp_path / "optitrack.mcap"
+    with OptitrackWriter(path) as writer:
+        for k in range(3):
+            writer.add("paddle_A", 2**63 - 1 + k, np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]))
+    with pytest.raises(McapDamagedError, match=rf"optitrack\.mcap: message 1 on /optitrack/paddle_A: "
+                                               rf"log_time {2**63} does not fit int64"):
+        read_optitrack(path)
+
+
+def test_two_channels_of_one_rigid_body_are_an_error(tmp_path):
+    """Two channels on /optitrack/paddle_A interleaved their poses into one body without a word."""
+    path = tmp_path / "optitrack.mcap"
+    with open(path, "wb") as f:
+        writer = McapWriter(f)
+        writer.start()
+        schema = writer.register_schema("foxglove.PoseInFrame", "protobuf",
+                                        build_file_descriptor_set(PoseInFrame).SerializeToString())
+        channels = [writer.register_channel(topic, "protobuf", schema)
+                    for topic in ("/optitrack/paddle_A", "/optitrack/paddle_B", "/optitrack/paddle_A")]
+        pose = PoseInFrame(frame_id="optitrack_world")
+        pose.pose.orientation.w = 1.0
+        for k in range(6):
+            writer.add_message(channels[k % 3], log_time=T0 + k, data=pose.SerializeToString(),
+                               publish_time=T0 + k)
+        writer.finish()
+    with pytest.raises(McapDamagedError, match=rf"optitrack\.mcap: two rigid-body channels named 'paddle_A' "
+                                               rf"\(channel {channels[0]} and channel {channels[2]}\)"):
+        read_optitrack(path)

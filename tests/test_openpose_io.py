@@ -522,3 +522,26 @@ def test_a_folder_of_few_people_is_not_judged():
     people = posed_people("standing", np.random.default_rng(13), n_frames=4)[:, :1]
     assert 0 < (people[..., 2] > 0).any(axis=-1).sum() < MIN_PEOPLE
     check_declared_model(people, "BODY_25B", [Path(f"cam.{f}.json") for f in range(len(people))])
+
+
+# Issue 48: a held-out fuzz run's findings, each now a KeypointsFileError naming the file
+
+
+@pytest.mark.parametrize("deep", ['{"people": ' + "[" * 200_000 + "]" * 200_000 + "}",
+                                  "[" * 200_000, '{"people": [{"pose_keypoints_2d": ' + '{"x": ' * 200_000])
+def test_json_nested_too_deep_is_named(tmp_path, deep):
+    """JSON nested 200,000 deep (whole, or cut short) raised json's RecursionError naming no file."""
+    path = tmp_path / "cam_000000000003_keypoints.json"
+    path.write_text(deep)
+    with pytest.raises(KeypointsFileError, match=rf"{path}: not an OpenPose keypoints JSON \(nested deeper "
+                                                 r"than the parser recurses\); expected \{\"version\""):
+        read_keypoints_json(path)
+
+
+def test_a_frame_number_beyond_int64_is_named(tmp_path):
+    """A dotted layout's frame number of any digit count: 20 digits became an OverflowError naming no file."""
+    for frame in (0, 10**20):
+        (tmp_path / f"cam.{frame}.json").write_text('{"people": []}')
+    with pytest.raises(KeypointsFileError, match=rf"cam\.{10**20}\.json: frame number {10**20} does not fit "
+                                                 "int64; expected a frame number"):
+        read_keypoints_folder(tmp_path)

@@ -21,12 +21,15 @@ also refuse a rig that the units make implausible (`check_camera_spacing`): metr
 put the cameras millimetres apart.
 
 Every value is checked where it enters, and a file that fails is refused with a `CalibrationFileError`
-naming the file, the camera and what was expected: numbers finite (never a string, a boolean or an empty
-entry read as 0), focal lengths positive, the principal point inside the image, the image size positive
-whole pixels, the rotation a rotation. OpenCV matrices (`!!opencv-matrix`) are read from their `rows`,
-`cols`, `dt` and `data` by this module, never by cv2's FileNode.mat(): a header that does not match its
-data (`cols: -1`, a huge size) corrupts the heap inside it, and an integer `dt` saturates values
-(a focal length of 1681 read as 255 with `dt: u`), so the header is checked and `dt` must be f or d.
+naming the file, the camera, the key and what was expected: numbers finite (never a string, a boolean or an
+empty entry read as 0), focal lengths positive, the principal point inside the image, the image size
+positive whole pixels, the rotation a rotation, each camera name once. A distortion list one value short
+reads as a valid 4-coefficient model, so where no matrix header declares the count (TOML, a plain list),
+the file's cameras must agree on it (a one-camera file cannot tell). OpenCV matrices (`!!opencv-matrix`)
+are read from their `rows`, `cols`, `dt` and `data` by this module, never by cv2's FileNode.mat(): a
+header that does not match its data (`cols: -1`, a huge size) corrupts the heap inside it, and an integer
+`dt` saturates values (a focal length of 1681 read as 255 with `dt: u`), so the header is checked and `dt`
+must be f or d.
 """
 
 import re
@@ -39,6 +42,7 @@ import tomli_w
 
 from pingpong.common.atomic import write_text_atomic
 from pingpong.common.camera import Camera
+from pingpong.io.guards import check_unique, parse_text
 
 UNITS_M = {"m": 1.0, "cm": 1e-2, "mm": 1e-3}
 UNIT_NAMES = {"m": "metres", "cm": "centimetres", "mm": "millimetres"}
@@ -54,7 +58,8 @@ OPENCV_KEYS = {
     "rotation": ("R", "rotation_matrix", "rvec"),
     "t": ("tvec", "t", "T", "translation"),
 }
-ANIPOSE_KEYS = ("size", "matrix", "distortions", "rotation", "translation")
+FIELDS = ("size", "K", "dist", "rotation", "t")  # a camera's values as _camera takes them
+ANIPOSE_KEYS = ("size", "matrix", "distortions", "rotation", "translation")  # the FIELDS in TOML
 MATRIX_DTYPES = ("f", "d")  # OpenCV's float and double: integer types would saturate or truncate values
 MAX_MATRIX_ELEMENTS = 64  # a camera's largest matrix is 3x3 (or 14 distortion coefficients)
 QUOTED = re.compile(r""""[^"]*"|'[^']*'""")
@@ -157,13 +162,43 @@ def _rotation(value, where: str) -> np.ndarray:
     return R
 
 
-def _camera(name: str, K, dist, rotation, t, width, height, scale: float, where: str) -> Camera:
-    width, height = _image_size(width, height, where)
-    t = _numbers(t, where, "translation").reshape(-1)
+def _key(name: str) -> str:
+    return f"key {name!r}"
+
+
+def _camera(name: str, fields: dict[str, tuple[str, object]], scale: float, where: str) -> Camera:
+    """A camera of its FIELDS, each (its key as errors name it, its value); errors name camera and key."""
+    at = {field: f"{where}: {key}" for field, (key, _) in fields.items()}
+    size, K, dist, rotation, t = (fields[field][1] for field in FIELDS)
+    width, height = _image_size(*size, at["size"])
+    t = _numbers(t, at["t"], "translation").reshape(-1)
     if t.size != 3:
-        raise CalibrationFileError(f"{where}: need a 3-vector translation, got {t.size} values")
-    return Camera(name=name, K=_camera_matrix(K, width, height, where), dist=_distortion5(dist, where),
-                  R=_rotation(rotation, where), t=t * scale, width=width, height=height)
+        raise CalibrationFileError(f"{at['t']}: need a 3-vector translation, got {t.size} values")
+    return Camera(name=name, K=_camera_matrix(K, width, height, at["K"]), dist=_distortion5(dist, at["dist"]),
+                  R=_rotation(rotation, at["rotation"]), t=t * scale, width=width, height=height)
+
+
+def _rig(path: Path, entries: list[tuple[str, dict, str]], scale: float, units: str) -> list[Camera]:
+    """The cameras of a file's (name, fields, place) entries, checked as one rig: each name once, the
+    distortions' lengths agreeing (`_check_distortion_lengths`), the spacing plausible."""
+    check_unique([name for name, _, _ in entries], [place for *_, place in entries], CalibrationFileError,
+                 str(path), "cameras")
+    cameras = [_camera(name, fields, scale, f"{path}: {place}") for name, fields, place in entries]
+    _check_distortion_lengths(path, entries)
+    check_camera_spacing(cameras, units, str(path))
+    return cameras
+
+
+def _check_distortion_lengths(path: Path, entries: list[tuple[str, dict, str]]) -> None:
+    """Distortions one value short (k1 k2 p1 p2 k3 with one lost) read as a valid 4-coefficient model: where
+    no matrix header declares their count (a TOML or plain list), the file's cameras must agree on it."""
+    lengths = [(np.size(fields["dist"][1]), place, fields["dist"][0]) for _, fields, place in entries
+               if not isinstance(fields["dist"][1], np.ndarray)]
+    if len({n for n, _, _ in lengths}) > 1:
+        (short, place, key), (most, other, _) = min(lengths), max(lengths)
+        raise CalibrationFileError(f"{path}: {place}: {key}: {short} distortion coefficients where {other} "
+                                   f"has {most}; expected {most} for every camera of the file (a value lost? "
+                                   "pad a camera calibrated with fewer with zeros)")
 
 
 def check_camera_spacing(cameras: list[Camera], units: str, where: str) -> None:
@@ -214,16 +249,12 @@ def read_anipose_toml(path: str | Path, *, units: str) -> list[Camera]:
     """Cameras (in file order) from an Anipose/Pose2Sim calibration TOML whose translations are in `units`."""
     path = Path(path)
     scale = _unit_scale(units)
-    try:
-        with path.open("rb") as f:
-            doc = tomllib.load(f)
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError, RecursionError) as err:
-        raise CalibrationFileError(f"{path}: not valid TOML ({type(err).__name__}: {err})") from None
+    doc = parse_text(path, tomllib.loads, CalibrationFileError, "valid TOML")
     metadata = doc.get("metadata", {})
     if not isinstance(metadata, dict):
         raise CalibrationFileError(f"{path}: [metadata]: expected a table, got {_short(metadata)}")
     _check_stated_units(metadata.get("units"), units, f"{path}: [metadata]")
-    cameras = []
+    entries = []
     for section, cam in doc.items():
         if section == "metadata":
             continue
@@ -236,16 +267,16 @@ def read_anipose_toml(path: str | Path, *, units: str) -> list[Camera]:
         if cam.get("fisheye", False) is not False:
             raise CalibrationFileError(f"{where}: fisheye cameras are not supported")
         if not isinstance(cam["size"], list) or len(cam["size"]) != 2:
-            raise CalibrationFileError(f"{where}: size must be [width, height], got {_short(cam['size'])}")
+            raise CalibrationFileError(f"{where}: key 'size': must be [width, height], got "
+                                       f"{_short(cam['size'])}")
         name = cam.get("name", section)
         if not isinstance(name, str):
             raise CalibrationFileError(f"{where}: name must be a string, got {_short(name)}")
-        cameras.append(_camera(name, cam["matrix"], cam["distortions"],
-                               cam["rotation"], cam["translation"], *cam["size"], scale, where))
-    if not cameras:
+        fields = {field: (_key(k), cam[k]) for field, k in zip(FIELDS, ANIPOSE_KEYS, strict=True)}
+        entries.append((name, fields, f"[{section}]"))
+    if not entries:
         raise CalibrationFileError(f"{path}: no camera tables")
-    check_camera_spacing(cameras, units, str(path))
-    return cameras
+    return _rig(path, entries, scale, units)
 
 
 def export_anipose_toml(cameras: list[Camera], path: str | Path, *, units: str = "m") -> None:
@@ -323,34 +354,36 @@ def _raw(node: "cv2.FileNode"):
     return "a list" if node.isSeq() else "a map" if node.isMap() else "nothing"
 
 
-def _opencv_camera(node: "cv2.FileNode", default_name: str, scale: float, where: str) -> Camera:
+def _opencv_camera(node: "cv2.FileNode", default_name: str, where: str) -> tuple[str, dict]:
+    """(name, FIELDS) of a camera map, each field (the key it was read from, its value)."""
     if not node.isMap():
         raise CalibrationFileError(f"{where}: expected a camera map, got {_short(_raw(node))}")
     keys = set(node.keys())
 
-    def get(field: str, names: tuple[str, ...]):
+    def get(field: str, names: tuple[str, ...]) -> tuple[str, object]:
         found = [n for n in names if n in keys]
         if not found:
             raise CalibrationFileError(f"{where}: missing {field!r} (one of the keys {list(names)})")
         try:
-            return _node_value(node.getNode(found[0]))
+            return _key(found[0]), _node_value(node.getNode(found[0]))
         except ValueError as err:
-            raise CalibrationFileError(f"{where}: key {found[0]!r}: {err}") from None
+            raise CalibrationFileError(f"{where}: {_key(found[0])}: {err}") from None
 
     if {"image_width", "image_height"} <= keys or {"width", "height"} <= keys:
         w_key, h_key = ("image_width", "image_height") if "image_width" in keys else ("width", "height")
-        width, height = get("width", (w_key,)), get("height", (h_key,))
+        size = f"keys {w_key!r}, {h_key!r}", (get("width", (w_key,))[1], get("height", (h_key,))[1])
     else:
-        size = _numbers(get("image size", ("image_size", "size")), where, "image size").ravel()
-        if size.size != 2:
-            raise CalibrationFileError(f"{where}: image size must be [width, height], got {size.tolist()}")
-        width, height = size
+        key, value = get("image size", ("image_size", "size"))
+        values = _numbers(value, f"{where}: {key}", "image size").ravel()
+        if values.size != 2:
+            raise CalibrationFileError(f"{where}: {key}: image size must be [width, height], got "
+                                       f"{values.tolist()}")
+        size = key, values
     if "name" in keys and not node.getNode("name").isString():
         raise CalibrationFileError(f"{where}: name must be a string, got "
                                    f"{_short(_raw(node.getNode('name')))}")
     name = node.getNode("name").string() if "name" in keys else default_name
-    return _camera(name, *(get(field, names) for field, names in OPENCV_KEYS.items()), width, height,
-                   scale, where)
+    return name, {"size": size, **{field: get(field, names) for field, names in OPENCV_KEYS.items()}}
 
 
 def read_opencv_calibration(path: str | Path, *, units: str) -> list[Camera]:
@@ -366,13 +399,12 @@ def read_opencv_calibration(path: str | Path, *, units: str) -> list[Camera]:
                                    f"({err.__cause__ or err})") from None
     try:
         _refuse_booleans(path)
-        cameras = _opencv_cameras(fs.root(), path, scale, units)
+        entries = _opencv_cameras(fs.root(), path, units)
     except UnicodeDecodeError as err:  # a key or string that is not UTF-8
         raise CalibrationFileError(f"{path}: not a readable OpenCV YAML/JSON file ({err})") from None
     finally:
         fs.release()
-    check_camera_spacing(cameras, units, str(path))
-    return cameras
+    return _rig(path, entries, scale, units)
 
 
 def _refuse_booleans(path: Path) -> None:
@@ -387,7 +419,8 @@ def _refuse_booleans(path: Path) -> None:
                                        f"{int(found.group() == 'true')})")
 
 
-def _opencv_cameras(root: "cv2.FileNode", path: Path, scale: float, units: str) -> list[Camera]:
+def _opencv_cameras(root: "cv2.FileNode", path: Path, units: str) -> list[tuple[str, dict, str]]:
+    """(name, FIELDS, place) of each camera of the file (`_rig` makes them cameras)."""
     if not root.isMap():
         raise CalibrationFileError(f"{path}: expected a map at the top level")
     if "units" in root.keys():
@@ -396,16 +429,16 @@ def _opencv_cameras(root: "cv2.FileNode", path: Path, scale: float, units: str) 
         seq = root.getNode("cameras")
         if not seq.isSeq():
             raise CalibrationFileError(f"{path}: 'cameras' must be a sequence of camera maps")
-        nodes = [(f"cam{i}", seq.at(i), f"{path}: cameras[{i}]") for i in range(seq.size())]
+        nodes = [(f"cam{i}", seq.at(i), f"cameras[{i}]") for i in range(seq.size())]
     elif set(OPENCV_KEYS["K"]) & set(root.keys()):  # a single camera at the top level
-        nodes = [(path.stem, root, str(path))]
-    else:
-        nodes = [(key, root.getNode(key), f"{path}: {key}") for key in root.keys()
+        nodes = [(path.stem, root, "top level")]
+    else:  # one map per camera, its key the name (FileStorage lists a repeated key twice)
+        nodes = [(key, root.getNode(key), key) for key in root.keys()
                  if root.getNode(key).isMap() and not _is_matrix(root.getNode(key))]
     if not nodes:
         raise CalibrationFileError(f"{path}: no cameras (expected a 'cameras' sequence or one map per "
                                    "camera)")
-    return [_opencv_camera(node, name, scale, where) for name, node, where in nodes]
+    return [(*_opencv_camera(node, name, f"{path}: {place}"), place) for name, node, place in nodes]
 
 
 def export_opencv_yaml(cameras: list[Camera], path: str | Path, *, units: str = "m") -> None:

@@ -21,7 +21,8 @@ Formats, detected from the file's content (never its name) and logged with the f
   frame, a `time_ns` column of camera-clock ns), which then wins.
 
 Every unreadable input raises CameraStreamError naming the file (and the frame or record), the libraries'
-own errors included. A truncated or corrupt file warns and ends the stream at the damage, or raises when
+own errors included, as do times that do not fit int64 ns and a ROS 2 stamp whose nanosec is a second or
+more. A truncated or corrupt file warns and ends the stream at the damage, or raises when
 strict; so does a video whose frames fall short of the duration its header declares (Matroska declares no
 frame count) or come at uneven intervals (frames lost, or a damaged time table).
 """
@@ -45,6 +46,7 @@ from mcap.well_known import SchemaEncoding
 from mcap_ros2.decoder import DecoderFactory
 
 from pingpong.io import mcap_io
+from pingpong.io.guards import check_int64
 from pingpong.io.jpeg import REDUCED_FLAGS, decode_jpeg, decode_jpeg_rows
 from pingpong.io.mcap_io import McapDamagedError
 
@@ -282,8 +284,15 @@ def _damage(text: str, strict: bool) -> None:
 # ---- ROS 2 bags
 
 
-def _stamp_ns(message) -> int:
-    return message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec
+def _stamp_ns(path: Path, source: _Source, index: int, log_time: int, message) -> int:
+    """The header stamp in ns; builtin_interfaces/Time's nanosec must be under a second (sec holds the
+    rest), else the frame would take a time up to 4.3 s late without a word."""
+    stamp = message.header.stamp
+    if not 0 <= stamp.nanosec < 1_000_000_000:
+        raise CameraStreamError(f"{path}: frame {index} (log_time {log_time} ns) on {source.topic}: header "
+                                f"stamp nanosec {stamp.nanosec}; expected 0 to 999999999 (whole seconds in "
+                                "sec)")
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
 
 
 def _ros2_messages(path: Path, source: _Source, schema: Schema, strict: bool):
@@ -314,19 +323,20 @@ def _compressed_encoding(image_format: str) -> str | None:
 
 
 def _ros2_frames(path: Path, source: _Source, strict: bool) -> Iterator[Frame]:
-    for index, _, message in _ros2_messages(path, source, source.schema, strict):
+    for index, log_time, message in _ros2_messages(path, source, source.schema, strict):
         where = f"{path}: frame {index} on {source.topic}"
+        time_ns = _stamp_ns(path, source, index, log_time, message)
         if source.format == "ros2_compressed":
             encoding = _compressed_encoding(message.format)
             if encoding is None:
                 raise CameraStreamError(f"{where} has format {message.format!r}; expected jpeg or png")
-            yield CameraFrame(_stamp_ns(message), message.data, encoding)
+            yield CameraFrame(time_ns, message.data, encoding)
         else:
             if message.encoding not in RAW_CHANNELS:
                 raise CameraStreamError(f"{where} has encoding {message.encoding!r}; expected one of "
                                         f"{', '.join(RAW_CHANNELS)} (alpha, 16-bit, float, Bayer and YUV "
                                         "images are not read)")
-            yield RawFrame(_stamp_ns(message), message.data, message.width, message.height, message.step,
+            yield RawFrame(time_ns, message.data, message.width, message.height, message.step,
                            message.encoding)
 
 
@@ -334,7 +344,7 @@ def _ros2_times(path: Path, source: _Source, strict: bool) -> np.ndarray:
     header_only = Schema(id=source.schema.id, name=source.schema.name, encoding=SchemaEncoding.ROS2,
                          data=HEADER_ONLY_MSGDEF.encode())
     messages = _ros2_messages(path, source, header_only, strict)
-    return np.array([_stamp_ns(message) for _, _, message in messages], dtype=np.int64)
+    return np.array([_stamp_ns(path, source, *entry) for entry in messages], dtype=np.int64)
 
 
 # ---- videos
@@ -399,10 +409,13 @@ def _check_extent(path: Path, pts: list[int], stream, duration_us: int | None, s
                 f"declares (about {round(declared / step)} frames): truncated or frames lost", strict)
 
 
-def _container_times(pts: list[int], time_base: Fraction, start_ns: int) -> np.ndarray:
+def _container_times(path: Path, pts: list[int], time_base: Fraction, start_ns: int) -> np.ndarray:
     """start_ns + (pts - first pts) * time_base in ns, rounded, in exact integer arithmetic."""
     num, den = time_base.numerator * 1_000_000_000, time_base.denominator
-    return np.array([start_ns + ((p - pts[0]) * num + den // 2) // den for p in pts], dtype=np.int64)
+    times = [start_ns + ((p - pts[0]) * num + den // 2) // den for p in pts]
+    for i, t in enumerate(times):
+        check_int64(t, CameraStreamError, f"{path}: frame {i}: start_ns + pts x time_base ({time_base} s) =")
+    return np.array(times, dtype=np.int64)
 
 
 def _read_timestamps(path: Path) -> np.ndarray:
@@ -420,7 +433,10 @@ def _read_timestamps(path: Path) -> np.ndarray:
         row = int(np.argmin(valid))
         raise CameraStreamError(f"{path}: row {row + 1} has time_ns {table['time_ns'].iloc[row]!r}, "
                                 "expected an integer (ns)")
-    times = values.astype(np.int64).to_numpy()
+    times = [int(value) for value in values]
+    for row, time_ns in enumerate(times):
+        check_int64(time_ns, CameraStreamError, f"{path}: row {row + 1}: time_ns")
+    times = np.array(times, dtype=np.int64)
     bad = np.flatnonzero(np.diff(times) <= 0)
     if len(bad):
         row = int(bad[0]) + 2  # rows count from 1 after the header
@@ -432,7 +448,7 @@ def _read_timestamps(path: Path) -> np.ndarray:
 def _video_times(path: Path, strict: bool, timestamps, start_ns: int) -> np.ndarray:
     pts, time_base = _video_packets(path, strict)
     if timestamps is None:
-        return _container_times(pts, time_base, start_ns)
+        return _container_times(path, pts, time_base, start_ns)
     times = _read_timestamps(Path(timestamps))
     if len(times) != len(pts):
         raise CameraStreamError(f"{timestamps}: {len(times)} timestamp rows, but video {path} has {len(pts)} "

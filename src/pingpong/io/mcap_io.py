@@ -16,7 +16,8 @@ rename it on a clean exit, so an exception or a kill never leaves a file under t
 Readers stream (memory bounded) and, on a truncated or corrupt file, stop at the damage with a
 warning naming the file and the last good log_time, or raise `McapDamagedError` when strict; fewer
 messages than the summary's statistics count (records lost where the reader skips them, e.g. zeroed)
-is damage too. OptiTrack poses must be finite with a unit quaternion (others dropped with a warning).
+is damage too. OptiTrack poses must be finite with a unit quaternion (others dropped with a warning). A
+log_time beyond int64 ns (MCAP's are uint64) and two channels of one rigid body are McapDamagedErrors.
 """
 
 import contextlib
@@ -40,6 +41,7 @@ from mcap.writer import CompressionType
 from mcap_protobuf.writer import Writer as ProtobufWriter
 
 from pingpong.common.atomic import atomic_path
+from pingpong.io.guards import check_int64, check_unique
 
 OPTITRACK_FRAME = "optitrack_world"
 OPTITRACK_PREFIX = "/optitrack/"
@@ -141,8 +143,8 @@ def _check_schema(path: Path, schema: Schema | None, channel: Channel, schema_na
 
 def _iter_messages(path: Path, schema_name: str, strict: bool, what: str, topic: str | None = None,
                    message_encoding: str = "protobuf"):
-    """(topic, log_time, data) of every message (of `topic` alone when given, the others skipped),
-    stopping (warning or raising) at damage."""
+    """(channel record, log_time, data) of every message (of `topic` alone when given, the others
+    skipped), stopping (warning or raising) at damage; a log_time beyond int64 is an error."""
     last_ns = None
     counts: dict[int, int] = {}  # messages read per channel id
     with open(path, "rb") as f:
@@ -152,7 +154,8 @@ def _iter_messages(path: Path, schema_name: str, strict: bool, what: str, topic:
                 if topic is not None and channel.topic != topic:
                     continue
                 _check_schema(path, schema, channel, schema_name, message_encoding)
-                yield channel.topic, message.log_time, message.data
+                _check_log_time(path, sum(counts.values()), channel.topic, message.log_time)
+                yield channel, message.log_time, message.data
                 last_ns = message.log_time
                 counts[channel.id] = counts.get(channel.id, 0) + 1
         except McapDamagedError:
@@ -170,6 +173,12 @@ def _iter_messages(path: Path, schema_name: str, strict: bool, what: str, topic:
         if strict:
             raise McapDamagedError(text)
         warnings.warn(text, stacklevel=3)
+
+
+def _check_log_time(path: Path, index: int, topic: str | None, log_time: int) -> None:
+    """MCAP times are uint64; the pipeline's are int64 ns, which numpy would wrap round past 2**63."""
+    check_int64(log_time, McapDamagedError, f"{path}: message {index}{f' on {topic}' if topic else ''}: "
+                "log_time")
 
 
 def _unread_messages(f, counts: dict[int, int], topic: str | None) -> str:
@@ -214,16 +223,22 @@ def read_optitrack(path: str | os.PathLike, strict: bool = False) -> dict[str, p
     """
     path = Path(path)
     rows: dict[str, list] = {}
-    for topic, log_time, data in _iter_messages(path, "foxglove.PoseInFrame", strict,
-                                                "foxglove.PoseInFrame poses"):
+    channels: dict[int, str] = {}  # channel id -> its body: two channels of one body would interleave
+    for channel, log_time, data in _iter_messages(path, "foxglove.PoseInFrame", strict,
+                                                  "foxglove.PoseInFrame poses"):
+        topic = channel.topic
         if not topic.startswith(OPTITRACK_PREFIX):
             continue
+        if channel.id not in channels:
+            channels[channel.id] = topic[len(OPTITRACK_PREFIX):]
+            check_unique(channels.values(), [f"channel {cid}" for cid in channels], McapDamagedError,
+                         str(path), "rigid-body channels")
         try:
             pose = PoseInFrame.FromString(data).pose
         except DecodeError as exc:
             raise McapDamagedError(f"{path}: the pose on {topic} at {log_time} ns does not decode as "
                                    f"foxglove.PoseInFrame ({exc})") from exc
-        rows.setdefault(topic[len(OPTITRACK_PREFIX):], []).append(
+        rows.setdefault(channels[channel.id], []).append(
             (log_time, pose.position.x, pose.position.y, pose.position.z, pose.orientation.x,
              pose.orientation.y, pose.orientation.z, pose.orientation.w))
     if not rows:
@@ -297,7 +312,10 @@ def _indexed_times(path: Path, schema_name: str, topic: str | None,
             warnings.warn(f"{path}: its message index disagrees with the file ({type(exc).__name__}: {exc}); "
                           "the times are read from the messages themselves instead", stacklevel=3)
             return None
-    return [t for *_, t in sorted(entries)]
+    times = [t for *_, t in sorted(entries)]
+    for index, log_time in enumerate(times):  # as the messages would be checked, had they been read
+        _check_log_time(path, index, topic, log_time)
+    return times
 
 
 _MESSAGE_HEADER = struct.Struct("<BQHIQ")  # opcode, record length, channel id, sequence, log_time

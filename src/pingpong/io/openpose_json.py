@@ -12,7 +12,8 @@ Read as real tools write it: a person without keypoints ({}) is no person; value
 enter (finite numbers, confidences in [0, 1], K triples); a folder is checked against the video's frame
 count (the extra or missing files named) and its declared model against the others of K keypoints
 (`check_declared_model`: BODY_25B declared BODY_25 would read silently with the wrong joints). Every
-refusal is a KeypointsFileError naming the file (and the person).
+refusal is a KeypointsFileError naming the file (and the person), malformed or too deeply nested JSON
+included.
 """
 
 import json
@@ -26,6 +27,7 @@ import numpy as np
 
 from pingpong.common.atomic import write_text_atomic
 from pingpong.frames import BODY25
+from pingpong.io.guards import check_int64, parse_text
 
 N_JOINTS = 25
 EMPTY_FIELDS = ("face_keypoints_2d", "hand_left_keypoints_2d", "hand_right_keypoints_2d", "pose_keypoints_3d",
@@ -127,6 +129,7 @@ def _count_hint(count: int, model: str) -> str:
 # the keys of a person in OpenPose's JSON (and of the markerless tools that write its format)
 OPENPOSE_PERSON_KEYS = {"person_id", *(f"{part}_keypoints_{d}d" for d in (2, 3)
                                        for part in ("pose", "face", "hand_left", "hand_right"))}
+OPENPOSE_LAYOUT = '{"version":..,"people":[{"pose_keypoints_2d":[x,y,c]*K,..}]}'
 _NUMBERS = {int, float}  # JSON numbers as json.loads gives them; bool, str and None are not
 
 
@@ -185,15 +188,13 @@ def _read_people(path: str | os.PathLike, model: str) -> tuple[np.ndarray, int]:
     """read_model_keypoints' people, and how many persons without keypoints it left out."""
     path = Path(path)
     names = model_keypoint_names(model)
-    try:
-        doc = json.loads(path.read_text())
-        people = doc["people"]
-        if not isinstance(people, list):
-            raise TypeError(f"people is {type(people).__name__}, not a list")
-    except (ValueError, KeyError, TypeError, UnicodeDecodeError) as exc:
-        raise KeypointsFileError(f"{path}: not an OpenPose keypoints JSON ({type(exc).__name__}: {exc}); "
-                                 'expected {"version":..,"people":[{"pose_keypoints_2d":[x,y,c]*K,..}]}'
-                                 ) from exc
+    doc = parse_text(path, json.loads, KeypointsFileError, "an OpenPose keypoints JSON", OPENPOSE_LAYOUT)
+    people = doc.get("people") if isinstance(doc, dict) else None
+    if not isinstance(people, list):
+        wrong = (f"the document is {type(doc).__name__}" if not isinstance(doc, dict) else "no people"
+                 if people is None else f"people is {type(people).__name__}, not a list")
+        raise KeypointsFileError(f"{path}: not an OpenPose keypoints JSON ({wrong}); "
+                                 f"expected {OPENPOSE_LAYOUT}")
     poses = [_pose_values(path, i, person, model) for i, person in enumerate(people)]
     found = [pose for pose in poses if pose is not None]
     return np.array(found).reshape(-1, len(names), 3), len(poses) - len(found)
@@ -253,7 +254,7 @@ def _frame_number(path: Path, pattern: re.Pattern) -> int:
     if number is None or not number.isdigit():
         raise KeypointsFileError(f"{path}: the group of file pattern {pattern.pattern!r} holds {number!r}, "
                                  "expected the frame number (digits)")
-    return int(number)
+    return check_int64(int(number), KeypointsFileError, f"{path}: frame number", "a frame number")
 
 
 def list_frame_files(folder: str | os.PathLike,

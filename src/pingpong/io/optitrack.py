@@ -1,9 +1,9 @@
 """OptiTrack rigid-body poses as labs record them: the MCAP stream or a Motive CSV export.
 
 A damaged export is an OptitrackError naming the file and line (a cell that is not a finite number, times
-that do not increase, a line the csv module or UTF-8 refuses), or a warning naming them (a frame number
-skipped or fewer rows than the header declares: rows lost; a pose with only some cells or a quaternion
-not of unit length: set lost)."""
+that do not increase or do not fit int64 ns, two rigid bodies of one name, a line the csv module or UTF-8
+refuses), or a warning naming them (a frame number skipped or fewer rows than the header declares: rows
+lost; a pose with only some cells or a quaternion not of unit length: set lost)."""
 
 import csv
 import math
@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from pingpong.io.guards import check_int64, check_unique
 from pingpong.io.mcap_io import QUATERNION_TOLERANCE, read_optitrack
 
 MOTIVE_LENGTH_UNITS_M = {"Meters": 1.0, "Centimeters": 1e-2, "Millimeters": 1e-3}
@@ -57,8 +58,9 @@ def read_motive_csv(path: str | Path) -> dict[str, pd.DataFrame]:
     if len(axes) < 2 or axes[1] != "Time (Seconds)":
         raise OptitrackError(f"{path}: line {axis_line + 1}: second column must be 'Time (Seconds)'")
     width = len(axes)
-    types, names, components = (row + [""] * (width - len(row)) for row in
-                                (labelled["Type"], labelled["Name"], components))
+    types, names, ids, components = (row + [""] * (width - len(row)) for row in
+                                     (labelled["Type"], labelled["Name"], labelled.get("ID", []), components))
+    _check_body_names(path, types, names, ids)
 
     columns: dict[str, dict[str, int]] = {}  # body -> {"x": column, ..., "qw": column}
     for col in range(2, width):
@@ -91,6 +93,15 @@ def read_motive_csv(path: str | Path) -> dict[str, pd.DataFrame]:
         frame.attrs = {"source": str(path), **meta}
         bodies[name] = frame
     return bodies
+
+
+def _check_body_names(path: Path, types: list[str], names: list[str], ids: list[str]) -> None:
+    """Two rigid bodies of one name (told apart by their IDs, where the export has an ID line) would read
+    as one body's poses."""
+    bodies = dict.fromkeys((name, body_id) for kind, name, body_id in zip(types, names, ids, strict=True)
+                           if kind == "Rigid Body")
+    check_unique([name for name, _ in bodies], [f"ID {body_id}" for _, body_id in bodies], OptitrackError,
+                 f"{path}: the Name line", "rigid bodies")
 
 
 def _csv_rows(path: Path) -> list[list[str]]:
@@ -132,7 +143,8 @@ def _data_rows(path: Path, data: list, width: int, wanted: list[int]):
         if frame != int(frame) or frame < 0:
             raise OptitrackError(f"{path}: line {line}, column 1: frame {row[0]!r}; expected a frame number")
         frames[n] = int(frame)
-        times[n] = round(_number(path, line, 1, row[1]) * 1e9)
+        times[n] = round(check_int64(_number(path, line, 1, row[1]) * 1e9, OptitrackError,
+                                     f"{path}: line {line}: time {row[1]!r} s in ns:"))
         for col in wanted:
             if row[col].strip():
                 values[n, col] = _number(path, line, col, row[col])
@@ -194,5 +206,8 @@ def read_optitrack_poses(path: str | Path, strict: bool = False,
                          "time of its first frame in config lab.motive_take_start_ns (session: ns)")
     bodies = read_motive_csv(path)
     for frame in bodies.values():
+        for end in (frame["time_ns"].iloc[[0, -1]] if len(frame) else []):  # times increase
+            check_int64(int(end) + int(take_start_ns), OptitrackError,
+                        f"{path}: the take's time {int(end)} ns + lab.motive_take_start_ns {take_start_ns} =")
         frame["time_ns"] += int(take_start_ns)
     return bodies
