@@ -3,6 +3,7 @@ moves or deletes anything else there, under any source and whatever ran before (
 
 import hashlib
 import json
+import os
 import subprocess
 
 import pytest
@@ -11,7 +12,7 @@ from hypothesis import strategies as st
 from workflow_util import ROOT, copy_checkout, snakemake, write_config
 
 from pingpong.common import atomic, raw_ownership
-from pingpong.common.raw_ownership import OWNED, clean, foreign_files, recording
+from pingpong.common.raw_ownership import OWNED, STAT_CACHE, clean, foreign_files, recording
 
 TWIN = "config/test/tiny.yaml"
 
@@ -64,6 +65,20 @@ def test_a_copy_of_the_twins_content_is_hashed_and_accepted(tmp_path, monkeypatc
     assert foreign_files(tmp_path) == []
 
 
+def test_the_stat_cache_never_vouches_for_changed_bytes(tmp_path, monkeypatch):
+    """A file written over in place, same size, its mtime set back (what `cp -p` or `touch -d` can do):
+    its ctime moved, so it is read again and refused."""
+    monkeypatch.chdir(tmp_path)
+    write_as_job(tmp_path, "twin_rig", {"raw/twin_truth/rig.json": b'{"a": 1}'})
+    rig = tmp_path / "raw/twin_truth/rig.json"
+    assert foreign_files(tmp_path) == [] and (tmp_path / OWNED / STAT_CACHE).is_file()
+    st = rig.stat()
+    with open(rig, "r+b") as f:
+        f.write(b'{"a": 2}')
+    os.utime(rig, ns=(st.st_atime_ns, st.st_mtime_ns))
+    assert foreign_files(tmp_path) == ["raw/twin_truth/rig.json"]
+
+
 def test_a_job_killed_after_its_renames_still_owns_them(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     with pytest.raises(KeyboardInterrupt):
@@ -71,9 +86,10 @@ def test_a_job_killed_after_its_renames_still_owns_them(tmp_path, monkeypatch):
                      folder="raw/sessions/s00/openpose/cam0", fail=True)
     assert [p.suffix for p in (tmp_path / OWNED).iterdir()] == [".pending"]
     assert foreign_files(tmp_path) == []
+    (tmp_path / OWNED / STAT_CACHE).unlink()
     write_as_job(tmp_path, "twin_camera", {"raw/sessions/s00/cam0.mcap": b"mcap2"},
                  folder="raw/sessions/s00/openpose/cam0")  # the rerun: one record, no pending
-    assert [p.suffix for p in (tmp_path / OWNED).iterdir()] == [".json"]
+    assert [p.suffix for p in (tmp_path / OWNED).iterdir()] == [".sha256"]
     assert foreign_files(tmp_path) == []
 
 

@@ -6,15 +6,16 @@ So every job whose outputs lie under raw/ (the twin's) records each file it writ
 `raw/twin_truth/owned/`, and before any job runs (`check`, from the Snakefile, the dry run too) every file
 under raw/ must be one of those with the same content; `clean` removes only such files.
 
-Records, one pair per job (named by the rule and its outputs, so parallel jobs never share a file):
-- `{rule}-{key}.pending`: `sha256  path` lines (sha256sum's format), appended and synced just before
-  each write is renamed into place (`pingpong.common.atomic`'s hook), so a job killed between its
-  renames and its end still owns what it wrote;
-- `{rule}-{key}.json`: at the job's end, each output file's SHA-256 with its size, mtime, ctime and inode.
-  A file whose stat still equals those is taken as unchanged without reading it again, as git's index
-  does (copying, `cp -p`, `rsync -a` or any write changes the inode or ctime, which no user tool sets);
-  any other file is hashed and compared. The paper-scale raw/ is 28 GB: hashing it at every start of
-  Snakemake would cost minutes.
+Records, one per job (named by the rule and its outputs, so parallel jobs never share a file), in
+sha256sum's format (`sha256  path` lines; `sha256sum -c` reads them):
+- `{rule}-{key}.pending`: a line appended and synced just before each write is renamed into place
+  (`pingpong.common.atomic`'s hook), so a job killed between its renames and its end still owns them;
+- `{rule}-{key}.sha256`: the same, compacted to its output files, at the job's end.
+Reading 28 GB (the paper-scale raw/) at every start of Snakemake would cost minutes, so `stat_cache.json`
+keeps each file's size, mtime, ctime and inode beside the hash it was last found to have, as git's index
+does: a file whose stat is unchanged is not read again (a copy, `cp -p`, `rsync -a` or any write changes
+the inode, mtime or ctime, which no user tool sets back). The check fills it in, not the job, because
+Snakemake touches a job's outputs after it ends.
 
 Not counted as anyone's file: `.gitkeep` (the repository's), `.snakemake_timestamp` (Snakemake writes it
 into directory outputs) and the atomic writes' temporaries (`.NAME.XXXXXXXX.tmp`, swept by the job that
@@ -35,6 +36,7 @@ from pingpong.common.hashing import file_sha256
 
 RAW = "raw"
 OWNED = "raw/twin_truth/owned"
+STAT_CACHE = "stat_cache.json"
 NOT_RECORDINGS = {".gitkeep", ".snakemake_timestamp"}
 _TEMPORARY = re.compile(r"\..+\.[a-z0-9_]{8}\.tmp")  # common.atomic's temporary names
 _SHOWN = 12  # files named in an error before "and N more"
@@ -54,7 +56,7 @@ def under_raw(path: str | os.PathLike, root: Path = Path(".")) -> bool:
 
 
 def _stat_key(path: Path) -> list[int]:
-    st = path.stat()
+    st = path.lstat()
     return [st.st_size, st.st_mtime_ns, st.st_ctime_ns, st.st_ino]
 
 
@@ -103,52 +105,63 @@ def recording(stage: str, outputs: list[str], root: Path = Path(".")) -> Iterato
         yield
     finally:
         atomic.BEFORE_RENAME.remove(before_rename)
-    pending = _pending_hashes(stem.with_suffix(".pending"))
-    files = {}
-    for out in mine:
-        for f in _files_in(root / out):
-            rel = _relative(f, root)
-            files[rel] = [pending.get(rel) or file_sha256(f), *_stat_key(f)]
-    atomic.write_text_atomic(stem.with_suffix(".json"), json.dumps({"outputs": mine, "files": files}))
+    pending = _hash_lines(stem.with_suffix(".pending"))
+    files = {_relative(f, root): f for out in mine for f in _files_in(root / out)}
+    lines = [f"{pending.get(rel) or file_sha256(f)}  {rel}\n" for rel, f in files.items()]
+    atomic.write_text_atomic(stem.with_suffix(".sha256"), "".join(lines))
     stem.with_suffix(".pending").unlink(missing_ok=True)
 
 
-def _pending_hashes(path: Path) -> dict[str, str]:
-    """The last hash recorded for each path in a .pending file."""
-    if not path.is_file():
-        return {}
+def _hash_lines(path: Path) -> dict[str, str]:
+    """The last hash a record gives each path."""
     pairs = (line.split("  ", 1) for line in path.read_text().splitlines() if "  " in line)
     return {rel: sha for sha, rel in pairs}
 
 
-def owned(root: Path = Path(".")) -> tuple[dict[str, set[str]], dict[str, list[list[int]]]]:
-    """Every path the records list: the hashes it may have, and the stats it had when recorded."""
+def owned(root: Path = Path(".")) -> dict[str, set[str]]:
+    """Every path the records list, with the hashes it may have."""
     folder = Path(root) / OWNED
     hashes: dict[str, set[str]] = {}
-    stats: dict[str, list[list[int]]] = {}
-    for path in sorted(folder.glob("*.json")) if folder.is_dir() else []:
-        for rel, (sha, *stat) in json.loads(path.read_text())["files"].items():
+    for path in sorted([*folder.glob("*.sha256"), *folder.glob("*.pending")]) if folder.is_dir() else []:
+        for rel, sha in _hash_lines(path).items():
             hashes.setdefault(rel, set()).add(sha)
-            stats.setdefault(rel, []).append(stat)
-    for path in sorted(folder.glob("*.pending")) if folder.is_dir() else []:
-        for rel, sha in _pending_hashes(path).items():
-            hashes.setdefault(rel, set()).add(sha)
-    return hashes, stats
+    return hashes
 
 
-def is_owned(path: Path, rel: str, hashes: dict, stats: dict) -> bool:
-    if rel not in hashes:
-        return False
-    return _stat_key(path) in stats.get(rel, []) or file_sha256(path) in hashes[rel]
+def _read_cache(root: Path) -> dict[str, list]:
+    path = root / OWNED / STAT_CACHE
+    try:
+        return json.loads(path.read_text()) if path.is_file() else {}
+    except (OSError, ValueError):  # a damaged cache costs only its reading again
+        return {}
+
+
+def _classify(root: Path) -> tuple[list[tuple[Path, str]], list[str]]:
+    """The files under raw/ (the records excepted) that the records list with their present content, and
+    the others; refreshes the stat cache for what it had to read."""
+    hashes, cache = owned(root), _read_cache(root)
+    fresh, mine, foreign = {}, [], []
+    for f in _files_in(root / RAW):
+        rel = _relative(f, root.resolve())
+        if rel.startswith(OWNED + "/"):
+            continue
+        stat = _stat_key(f)
+        cached = cache.get(rel)
+        sha = cached[0] if cached and cached[1:] == stat else file_sha256(f)
+        if sha in hashes.get(rel, ()):
+            mine.append((f, rel))
+            fresh[rel] = [sha, *stat]
+        else:
+            foreign.append(rel)
+    if fresh != cache and (root / OWNED).is_dir():
+        with contextlib.suppress(OSError):  # a read-only raw/ is checked, only not cached
+            atomic.write_text_atomic(root / OWNED / STAT_CACHE, json.dumps(fresh))
+    return mine, foreign
 
 
 def foreign_files(root: Path = Path(".")) -> list[str]:
     """The files under raw/ that no record lists with their present content (the records excepted)."""
-    root = Path(root)
-    hashes, stats = owned(root)
-    files = ((f, _relative(f, root.resolve())) for f in _files_in(root / RAW))
-    return [rel for f, rel in files
-            if not rel.startswith(OWNED + "/") and not is_owned(f, rel, hashes, stats)]
+    return _classify(Path(root))[1]
 
 
 def check(root: Path = Path(".")) -> None:
@@ -170,19 +183,12 @@ def clean(root: Path = Path(".")) -> tuple[list[str], list[str]]:
     """Remove the files under raw/ that the records list with their present content, then the records and
     the folders left empty; everything else stays. Returns (removed, kept)."""
     root = Path(root)
-    hashes, stats = owned(root)
-    removed, kept = [], []
-    for f in list(_files_in(root / RAW)):
-        rel = _relative(f, root.resolve())
-        if rel.startswith(OWNED + "/"):
-            continue
-        if is_owned(f, rel, hashes, stats):
-            f.unlink()
-            removed.append(rel)
-        else:
-            kept.append(rel)
-    for record in sorted((root / OWNED).glob("*")) if (root / OWNED).is_dir() else []:
+    mine, kept = _classify(root)
+    for f, _rel in mine:
+        f.unlink()
+    for record in sorted((root / OWNED).iterdir()) if (root / OWNED).is_dir() else []:
         record.unlink()
+    removed = [rel for _f, rel in mine]
     _remove_emptied_folders(root / RAW, {(root / r).parent for r in removed} | {root / OWNED})
     return removed, kept
 
