@@ -11,7 +11,8 @@ sha256sum's format (`sha256  path` lines; `sha256sum -c` reads them):
 - `{rule}-{key}.pending`: a line appended and synced just before each write is renamed into place
   (`pingpong.common.atomic`'s hook), so a job killed between its renames and its end still owns them;
 - `{rule}-{key}.sha256`: the same, compacted to its output files, at the job's end.
-Reading 28 GB (the paper-scale raw/) at every start of Snakemake would cost minutes, so `stat_cache.json`
+Reading 28 GB (the paper-scale raw/) at every start of Snakemake would cost minutes, so a cache
+(`.snakemake/raw_stat_cache.json`: the workflow's state, not an artifact; its stats differ run to run)
 keeps each file's size, mtime, ctime and inode beside the hash it was last found to have, as git's index
 does: a file whose stat is unchanged is not read again (a copy, `cp -p`, `rsync -a` or any write changes
 the inode, mtime or ctime, which no user tool sets back). The check fills it in, not the job, because
@@ -36,7 +37,7 @@ from pingpong.common.hashing import file_sha256
 
 RAW = "raw"
 OWNED = "raw/twin_truth/owned"
-STAT_CACHE = "stat_cache.json"
+STAT_CACHE = ".snakemake/raw_stat_cache.json"
 NOT_RECORDINGS = {".gitkeep", ".snakemake_timestamp"}
 _TEMPORARY = re.compile(r"\..+\.[a-z0-9_]{8}\.tmp")  # common.atomic's temporary names
 _SHOWN = 12  # files named in an error before "and N more"
@@ -129,16 +130,16 @@ def owned(root: Path = Path(".")) -> dict[str, set[str]]:
 
 
 def _read_cache(root: Path) -> dict[str, list]:
-    path = root / OWNED / STAT_CACHE
+    path = root / STAT_CACHE
     try:
         return json.loads(path.read_text()) if path.is_file() else {}
     except (OSError, ValueError):  # a damaged cache costs only its reading again
         return {}
 
 
-def _classify(root: Path) -> tuple[list[tuple[Path, str]], list[str]]:
+def _classify(root: Path, cache_to: Path | None) -> tuple[list[tuple[Path, str]], list[str]]:
     """The files under raw/ (the records excepted) that the records list with their present content, and
-    the others; refreshes the stat cache for what it had to read."""
+    the others; the stat cache refreshed for what it had to read (cache_to: where; None, not written)."""
     hashes, cache = owned(root), _read_cache(root)
     fresh, mine, foreign = {}, [], []
     for f in _files_in(root / RAW):
@@ -153,15 +154,15 @@ def _classify(root: Path) -> tuple[list[tuple[Path, str]], list[str]]:
             fresh[rel] = [sha, *stat]
         else:
             foreign.append(rel)
-    if fresh != cache and (root / OWNED).is_dir():
-        with contextlib.suppress(OSError):  # a read-only raw/ is checked, only not cached
-            atomic.write_text_atomic(root / OWNED / STAT_CACHE, json.dumps(fresh))
+    if cache_to is not None and fresh != cache:
+        with contextlib.suppress(OSError):  # where it cannot be written, the files are only read again
+            atomic.write_text_atomic(cache_to, json.dumps(fresh))
     return mine, foreign
 
 
 def foreign_files(root: Path = Path(".")) -> list[str]:
     """The files under raw/ that no record lists with their present content (the records excepted)."""
-    return _classify(Path(root))[1]
+    return _classify(Path(root), Path(root) / STAT_CACHE)[1]
 
 
 def check(root: Path = Path(".")) -> None:
@@ -183,7 +184,7 @@ def clean(root: Path = Path(".")) -> tuple[list[str], list[str]]:
     """Remove the files under raw/ that the records list with their present content, then the records and
     the folders left empty; everything else stays. Returns (removed, kept)."""
     root = Path(root)
-    mine, kept = _classify(root)
+    mine, kept = _classify(root, None)
     for f, _rel in mine:
         f.unlink()
     for record in sorted((root / OWNED).iterdir()) if (root / OWNED).is_dir() else []:
