@@ -112,7 +112,8 @@ def fit_params(folder, max_rms_share: float = 0.002) -> dict:
     """The stage's params for a lab fitting its one camera cam0 on LAB_BOARD, k3 left to the lab default."""
     return {"cameras": ["cam0"], "folders": [str(folder)], "import_units": None, "import_world": None,
             "import_names": {}, "extrinsics": "table_mat", "board": LAB_SPEC, "fit_k3": None, "source": "lab",
-            "max_rms_share": max_rms_share, "strict": False, "take_start_ns": None, "code": ""}
+            "max_rms_share": max_rms_share, "frame_crop": {}, "strict": False, "take_start_ns": None,
+            "code": ""}
 
 
 def test_the_stage_fits_a_lab_without_optitrack(lab_folder, lab_camera, tmp_path):

@@ -221,8 +221,8 @@ def stage_params(folder, extrinsics, max_rms_share: float = 0.002) -> dict:
     return {"cameras": ["cam0"], "folders": [str(folder)], "import_units": None, "import_world": None,
             "import_names": {}, "extrinsics": extrinsics,
             "board": {"type": "checkerboard", "inner_corners": [9, 6], "square_m": 0.04}, "fit_k3": None,
-            "source": "lab", "max_rms_share": max_rms_share, "strict": False, "take_start_ns": None,
-            "code": ""}
+            "source": "lab", "max_rms_share": max_rms_share, "frame_crop": {}, "strict": False,
+            "take_start_ns": None, "code": ""}
 
 
 def run_stage(tmp_path, folder, extrinsics, inputs=None, **kw) -> tuple[Camera, dict]:

@@ -439,8 +439,8 @@ def run_import(tmp_path, path, world, units="m", shots=(), names=NAMES, max_rms_
     """The calibration stage's main on an import, with the table shots `shots` (one per camera) if any."""
     params = {"cameras": names, "folders": [str(tmp_path / n) for n in names], "import_units": units,
               "import_world": world, "import_names": name_map or {}, "extrinsics": "table_mat", "board": None,
-              "fit_k3": None, "source": "lab", "max_rms_share": max_rms_share, "strict": False,
-              "take_start_ns": None, "code": ""}
+              "fit_k3": None, "source": "lab", "max_rms_share": max_rms_share, "frame_crop": {},
+              "strict": False, "take_start_ns": None, "code": ""}
     inputs = Named(calibration_import=str(path), shots=[str(s) for s in shots])  # no optitrack
     out = tmp_path / "cameras.json"
     stage.main(StageContext("calibration", inputs, Named(cameras=str(out)), params, None))

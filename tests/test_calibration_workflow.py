@@ -4,10 +4,17 @@ edited one reruns the calibration (dry runs on a copy of the checkout)."""
 
 import os
 import re
+from dataclasses import replace
 
+import cv2
+import numpy as np
 import pytest
 import yaml
+from test_frame_size import write_video
+from test_lab_preflight import SIZE, rig
 from workflow_util import ROOT, copy_checkout, snakemake, write_config
+
+from pingpong.io.calibration_import import export_anipose_toml
 
 CAMS = ["cam0", "cam1"]
 LAB = {"source": "lab", "lab": {"sessions": ["s00"], "cameras": CAMS, "optitrack_format": "none"}}
@@ -15,17 +22,19 @@ TARGET = "interim/calibration/cameras.json"
 
 
 def lab_layout(root, views=".jpg", shot="table.tif"):
-    """A lab's raw/ as far as a dry run looks (file contents are not read): 4 views and a table shot per
-    camera, one stream and its OpenPose folder each."""
+    """A lab's raw/ as far as a dry run looks (the recordings' headers, the first board view, a sample of
+    the OpenPose files: pingpong.io.lab_preflight): 4 views and a table shot per camera (the shot is not
+    read), a one-frame stream and its OpenPose file each."""
+    image = np.zeros((SIZE[1], SIZE[0], 3), np.uint8)
     for cam in CAMS:
         folder = root / "raw/calibration" / cam
         folder.mkdir(parents=True)
         for i in range(4):
-            (folder / f"intrinsics_{i:02d}{views}").write_bytes(b"view")
+            cv2.imwrite(str(folder / f"intrinsics_{i:02d}{views}"), image)
         (folder / shot).write_bytes(b"shot")
         (root / "raw/sessions/s00/openpose" / cam).mkdir(parents=True)
-        (root / "raw/sessions/s00" / f"{cam}.mp4").write_bytes(b"video")
-        (root / "raw/sessions/s00/openpose" / cam / "000000000000_keypoints.json").write_text("{}")
+        write_video([image], root / "raw/sessions/s00" / f"{cam}.mkv", SIZE[0])
+        (root / "raw/sessions/s00/openpose" / cam / f"{cam}.0.json").write_text('{"people": []}')
 
 
 def calibration_job(proc) -> str | None:
@@ -66,7 +75,8 @@ def test_an_import_and_a_points_file_are_inputs(lab_root):
     write_config(lab_root, {**LAB, "perception": {"calibration_import": "raw/calibration/rig.toml",
                                                   "calibration_import_units": "mm",
                                                   "calibration_import_world": "table"}})
-    (lab_root / "raw/calibration/rig.toml").write_text("# the lab's calibration\n")
+    export_anipose_toml([replace(c, name=n) for c, n in zip(rig(), CAMS, strict=False)],
+                        lab_root / "raw/calibration/rig.toml", units="mm")
     (lab_root / "interim/calibration").mkdir(parents=True)
     (lab_root / TARGET).write_text("{}")
     assert calibration_job(snakemake(lab_root, "-n", TARGET)) is None
@@ -74,7 +84,7 @@ def test_an_import_and_a_points_file_are_inputs(lab_root):
     job = calibration_job(snakemake(lab_root, "-n", TARGET))
     assert job is not None and "Updated input files: raw/calibration/rig.toml" in job
     # scene points from a file: an input too, and no shot is needed
-    write_config(lab_root, {**LAB, "perception": {"calibration_extrinsics": {
+    write_config(lab_root, {**LAB, "perception": {"scene": {"mode": "subjects"}, "calibration_extrinsics": {
         "type": "points", "file": "raw/calibration/points.csv", "frame": "lab"}}})
     (lab_root / "raw/calibration/points.csv").write_text("point,x_m,y_m,z_m,cam0_u,cam0_v\n")
     job = calibration_job(snakemake(lab_root, "-n", TARGET))

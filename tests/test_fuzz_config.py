@@ -92,17 +92,18 @@ def test_a_repeated_key_stops_the_workflow(tmp_path):
     assert f"config file {path}: line 3: key 'training' repeated" in proc.stdout + proc.stderr
 
 
-def test_schema_errors_name_the_file_that_set_the_key(tmp_path):
+def test_schema_errors_name_the_file_and_line_that_set_the_key(tmp_path):
     base, lab = tmp_path / "config.yaml", tmp_path / "lab.yaml"
     base.write_text("twin: {n_sessions: 2}\ntraining: {n_folds: 3}\n")
-    lab.write_text("twin: {n_sessions: 1.0, widht: 480}\n")
+    lab.write_text("# the lab's\ntwin:\n  n_sessions: 1.0\n  widht: 480\n")
     sources = [(str(base), load_config_file(base)), (str(lab), load_config_file(lab))]
     config = {"twin": {"n_sessions": 1.0, "widht": 480}, "training": {"n_folds": 1}}
     with pytest.raises(ConfigError) as err:
         validate_config(config, SCHEMA, sources=sources)
-    assert f"'twin.n_sessions': expected integer, got float 1.0 (in {lab})" in str(err.value)
-    assert "unknown key(s) ['widht']; allowed here: " in str(err.value) and f"] (in {lab})" in str(err.value)
-    assert f"'training.n_folds': 1 is less than the minimum of 2 (in {base})" in str(err.value)
+    assert f"'twin.n_sessions': expected integer, got float 1.0 (in {lab}, line 3)" in str(err.value)
+    assert "unknown key(s) ['widht']; allowed here: " in str(err.value)
+    assert f"] (in {lab}, line 4)" in str(err.value)
+    assert f"'training.n_folds': 1 is less than the minimum of 2 (in {base}, line 2)" in str(err.value)
 
 
 @pytest.mark.parametrize("value", [".nan", ".NaN", ".inf", "-.Inf", "+.inf"])

@@ -169,6 +169,10 @@ def check_raw_layout():
                                    Path(optitrack_path("any")).name if has_optitrack() else None,
                                    config["perception"]["calibration_import"], extrinsics_kind(),
                                    lab["session_cameras"])
+    from pingpong.io.lab_preflight import lab_preflight  # reads video headers (PyAV): a lab's runs only
+
+    # what the recordings' headers and a sample of their OpenPose files say against the config
+    problems += lab_preflight(Path("."), lab, config["perception"])
     if problems:
         raise WorkflowError("the lab's recordings under raw/ do not match the config:\n  - "
                             + "\n  - ".join(problems) + "\n(see the README's 'Bringing your lab's recordings')")

@@ -19,6 +19,7 @@ rule calibration:
         fit_k3=PERCEPTION["calibration_fit_k3"],
         source=config["source"],
         max_rms_share=PERCEPTION["calibration_max_rms_share"],
+        frame_crop=PERCEPTION["frame_crop"],
         strict=PERCEPTION["strict_mcap"],
         take_start_ns=motive_take_start_ns(sessions()[0]) if has_optitrack() else None,
         code=code("calibration"),

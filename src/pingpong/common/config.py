@@ -114,7 +114,8 @@ def check_config_files(paths) -> list[tuple[str, dict]]:
 
 
 def _source_of(keys: list, sources) -> str:
-    """' (in FILE)': the last of `sources` (later files win) that sets the deepest prefix of `keys`."""
+    """' (in FILE, line N)': the last of `sources` (later files win) that sets the deepest prefix of `keys`,
+    and the line where it does."""
     best, depth = "", 0
     for path, data in sources:
         node, d = data, 0
@@ -125,7 +126,32 @@ def _source_of(keys: list, sources) -> str:
             node, d = node[key], d + 1
         if d and d >= depth:
             best, depth = path, d
-    return f" (in {best})" if best else ""
+    if not best:
+        return ""
+    line = _line_of(best, keys[:depth])
+    return f" (in {best}, line {line})" if line else f" (in {best})"
+
+
+def _line_of(path: str, keys: list) -> int | None:
+    """The line (from 1) of config file `path` that sets the value at `keys` (a key's line, or a list item's);
+    read again only for an error's message, so a file that no longer composes gives None."""
+    try:
+        node = yaml.compose(Path(path).read_text(encoding="utf-8"), Loader=yaml.SafeLoader)
+    except (OSError, UnicodeDecodeError, yaml.YAMLError):
+        return None
+    line = None
+    for key in keys:
+        if isinstance(node, yaml.MappingNode):
+            found = [(k, v) for k, v in node.value if k.value == str(key)]
+            if not found:
+                break
+            line, node = found[0][0].start_mark.line + 1, found[0][1]
+        elif isinstance(node, yaml.SequenceNode) and isinstance(key, int) and key < len(node.value):
+            node = node.value[key]
+            line = node.start_mark.line + 1
+        else:
+            break
+    return line
 
 
 def _value_count(value, counts: dict) -> int:
@@ -270,8 +296,10 @@ def _merged(base: dict, update: dict) -> dict:
 
 def check_main(argv=None) -> int:
     """`python -m pingpong.common.config FILE...`: each config file read strictly and validated over
-    config/config.yaml, as the workflow would. Snakemake itself refuses a --configfile with an unsafe or
-    unknown tag before the workflow's code runs, blaming tab indentation: this names the tag and line.
+    config/config.yaml, as the workflow would, each problem naming its file and line; under source: lab,
+    the lab's recordings under raw/ checked against it as the workflow does at each start (headers and a
+    sample: pingpong.io.lab_preflight). Snakemake itself refuses a --configfile with an unsafe or unknown
+    tag before the workflow's code runs, blaming tab indentation: this names the tag and line.
     (Registered names, e.g. robot.estimator, are checked by the workflow: their enums live in registries.)"""
     import argparse
 
@@ -288,7 +316,15 @@ def check_main(argv=None) -> int:
     except ConfigError as err:
         print(err)
         return 1
-    print(f"config ok: {', '.join(map(str, args.files))}")
+    if config["source"] == "lab":
+        from pingpong.io.lab_preflight import lab_preflight  # reads videos: only a lab's check needs it
+
+        problems = lab_preflight(args.root, config["lab"], config["perception"])
+        if problems:
+            print("the lab's recordings under raw/ do not match the config:\n  - " + "\n  - ".join(problems))
+            return 1
+    print(f"config ok: {', '.join(map(str, args.files))}"
+          + (" (and the lab's recordings' headers under raw/)" if config["source"] == "lab" else ""))
     return 0
 
 

@@ -54,6 +54,7 @@ WORLD_CONFIG = "config perception.calibration_import_world"
 RMS_CONFIG = "config perception.calibration_max_rms_share"
 EXTRINSICS_CONFIG = "config perception.calibration_extrinsics"
 NAMES_CONFIG = "config perception.calibration_import_names"
+CROP_CONFIG = "config perception.frame_crop"
 
 
 class CalibrationError(RuntimeError):
@@ -594,11 +595,7 @@ def import_calibration(path, units: str | None, world, names: list[str], table_s
     table_shots: camera name -> its table.{ext}, where the lab has them; name_map: {name in the file:
     camera name} for the file's cameras named otherwise than the config's.
     """
-    if units is None:
-        raise CalibrationError(f"{path}: config perception.calibration_import_units is required with an "
-                               f"import: the file's length unit (m, cm or mm), which neither format states")
-    reader = read_anipose_toml if str(path).endswith(".toml") else read_opencv_calibration
-    cameras = _configured(reader(path, units=units), names, path, name_map or {})
+    cameras = read_imported_cameras(path, units, names, name_map or {})
     T_table_from_world, observations = table_from_world(world, cameras)
     cameras = change_world_frame(cameras, invert_transform(T_table_from_world))
     if world == "lab":
@@ -623,6 +620,16 @@ def import_calibration(path, units: str | None, world, names: list[str], table_s
         log.info("%s: %s reproject at %.2f px RMS (limit %.2f px)", check["camera"], check["points"],
                  check["rms_px"], check["limit_px"])
     return cameras, checks
+
+
+def read_imported_cameras(path, units: str | None, names: list[str], name_map: dict) -> list[Camera]:
+    """The config's cameras `names` read from an imported calibration file in its own world frame (units and
+    name_map as import_calibration's); what is wrong with the file, its units or its names is an error."""
+    if units is None:
+        raise CalibrationError(f"{path}: config perception.calibration_import_units is required with an "
+                               f"import: the file's length unit (m, cm or mm), which neither format states")
+    reader = read_anipose_toml if str(path).endswith(".toml") else read_opencv_calibration
+    return _configured(reader(path, units=units), names, path, name_map)
 
 
 def _configured(cameras: list[Camera], names: list[str], path, name_map: dict) -> list[Camera]:
@@ -734,6 +741,33 @@ def fit_table_from_world(cameras: list[Camera], observations: list) -> np.ndarra
 
 def _transform(x: np.ndarray) -> np.ndarray:
     return make_transform(Rotation.from_rotvec(x[:3]).as_matrix(), x[3:])
+
+
+# --- recordings of a window of the calibrated image -------------------------------------------------
+
+def crop_to_recorded(cameras: list[Camera], crops: dict) -> list[Camera]:
+    """The cameras as their recordings see them: a camera whose recorded frames are the window {x, y, width,
+    height} (px) of its calibrated image (crops, config perception.frame_crop: recorded pixel + (x, y) =
+    calibrated pixel) gets its principal point moved by -(x, y) and the window's size, so that every stage
+    after this one reads the recordings as they are; the others are as calibrated."""
+    names = [c.name for c in cameras]
+    unknown = sorted(set(crops) - set(names))
+    if unknown:
+        raise CalibrationError(f"{CROP_CONFIG} names {unknown}, which are not among the cameras {names}")
+    return [_cropped(c, crops[c.name]) if c.name in crops else c for c in cameras]
+
+
+def _cropped(camera: Camera, crop: dict) -> Camera:
+    K = camera.K.copy()
+    K[:2, 2] -= (crop["x"], crop["y"])
+    if not (0 <= K[0, 2] <= crop["width"] and 0 <= K[1, 2] <= crop["height"]):
+        raise CalibrationError(f"{camera.name}: {CROP_CONFIG} {crop} puts the principal point at "
+                               f"({K[0, 2]:g}, {K[1, 2]:g}) px, outside its {crop['width']} x "
+                               f"{crop['height']} px frames")
+    log.warning("%s: calibrated at %d x %d px, recorded at %d x %d px from (%d, %d) px of it (%s): principal "
+                "point moved to (%.1f, %.1f) px", camera.name, camera.width, camera.height, crop["width"],
+                crop["height"], crop["x"], crop["y"], CROP_CONFIG, K[0, 2], K[1, 2])
+    return replace(camera, K=K, width=crop["width"], height=crop["height"])
 
 
 # --- the stored calibration and OptiTrack ---------------------------------------------------------
