@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 
-.PHONY: setup run paper-scale test lint report clean
+.PHONY: setup setup-slurm run paper-scale test lint report clean
 
 setup: $(VENV)/.installed
 
@@ -14,9 +14,8 @@ setup: $(VENV)/.installed
 # Byte-compiled at install, as pip does and uv does not by default: where PYTHONDONTWRITEBYTECODE is set
 # (these machines set it) every job would otherwise compile each module it imports, e.g. 1.45 s instead of
 # 0.54 s to import twin_openpose's stage; the project's own src/ likewise.
-# `make run` installs what the pipeline imports; the tests add pytest and the rest of the `test` extra,
-# the SLURM executor plugin among them (imported by every Snakemake start that has it, it asks the
-# cluster for its configuration: 9 s where a SLURM client is installed and its controller is not running).
+# `make run` installs what the pipeline and `make report` import (snakemake[reports]: pygments); the tests
+# add pytest and the rest of the `test` extra, the SLURM executor plugin among them.
 UV_VERSION := 0.13.9
 FIND_LINKS ?= $(or $(PIP_FIND_LINKS),$(shell $(PYTHON) -m pip config get global.find-links 2>/dev/null))
 UV_INSTALL = $(BIN)/uv pip install --quiet --compile-bytecode --python $(BIN)/python -c constraints.txt \
@@ -31,6 +30,17 @@ $(VENV)/.installed: pyproject.toml constraints.txt
 
 $(VENV)/.installed-test: $(VENV)/.installed
 	$(UV_INSTALL) -e ".[test]"
+	touch $@
+
+# The SLURM executor plugin (for profiles/slurm) is a step of its own, asked for by name, rather than part of
+# setup or installed wherever a SLURM client is found: every Snakemake start that has it imports it, and it
+# asks the cluster for its configuration: 9 s per start where a SLURM client is installed and its controller
+# is not running (a workstation with the client, a cluster while its controller is down), which a local run
+# or a dry run should not pay; installed where `sbatch` is found, what setup makes would depend on PATH.
+setup-slurm: $(VENV)/.installed-slurm
+
+$(VENV)/.installed-slurm: $(VENV)/.installed
+	$(UV_INSTALL) -e ".[slurm]"
 	touch $@
 
 run: setup

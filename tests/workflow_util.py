@@ -59,3 +59,28 @@ def changed(before: dict, after: dict) -> set[str]:
 ROBOT_URDF, ROBOT_LIMITS = ROOT / "config/robot/iiwa14_ridgeback.urdf", ROOT / "config/robot/limits.yaml"
 # every default of config/schema.yaml: what an empty config gives, and what the typed settings are built from
 DEFAULTS = schema_defaults(ROOT / "config/schema.yaml")
+
+
+def make_setup(clone: Path) -> Path:
+    """`make setup` in `clone` (a fresh copy of the checkout) as a user runs it: the environment that
+    `make run` installs first, not the tests' `test` extra. With uv's cache warm (the checkout's own setup
+    filled it) the wheels are hardlinked from it: ~45 s, most of it byte-compiling. Returns `clone/.venv`."""
+    env = {k: v for k, v in os.environ.items() if k not in ("VIRTUAL_ENV", "PYTHONPATH")}
+    proc = subprocess.run(["make", "setup"], cwd=clone, env=env, capture_output=True, text=True)
+    assert proc.returncode == 0, f"make setup failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-6000:]}"
+    return clone / ".venv"
+
+
+def open_in_browser(page: Path, shot: Path) -> str | None:
+    """`page` in headless Chromium (Debian's package; .ci/run installs it), as the report's screenshot test
+    (tests/test_pipeline_end_to_end.py) opens it: a 1280x900 screenshot written to `shot`, and the page's DOM
+    once its scripts ran (returned). None where there is no browser."""
+    browser = shutil.which("chromium")
+    if browser is None:
+        return None
+    args = [browser, "--headless", "--no-sandbox", "--disable-gpu", "--window-size=1280,900",
+            "--virtual-time-budget=5000"]
+    subprocess.run([*args, f"--screenshot={shot}", page.as_uri()], check=True, capture_output=True,
+                   timeout=120)
+    return subprocess.run([*args, "--dump-dom", page.as_uri()], check=True, capture_output=True, text=True,
+                          timeout=120).stdout
