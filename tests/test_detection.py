@@ -15,13 +15,21 @@ import pandas as pd
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from workflow_util import ROOT
 
 import pingpong.perception.detection as detection
 from pingpong.common.artifacts import Provenance, read_table, write_table
+from pingpong.common.config import validate_config
 from pingpong.common.seeding import rng_for
 from pingpong.io.camera_streams import CameraFrame
 from pingpong.io.jpeg import decode_jpeg
-from pingpong.perception.detection import BallDetector, detect_ball, detect_stream, stream_reduction
+from pingpong.perception.detection import (
+    BallDetector,
+    ball_detector,
+    detect_ball,
+    detect_stream,
+    stream_reduction,
+)
 from pingpong.perception.schemas import DETECTIONS
 from pingpong.twin import render
 from pingpong.twin.cameras import record_camera
@@ -99,6 +107,18 @@ def test_false_detections_are_rare(scored):
     assert false.mean() < 0.005
 
 
+def test_the_configured_ball():
+    # the schema's defaults are today's detector (the default run's detections unchanged); a measured range
+    # replaces the colour's
+    ball = validate_config({}, ROOT / "config/schema.yaml")["perception"]["ball"]
+    assert ball_detector(ball) == BallDetector()
+    measured = ball_detector({**ball, "hsv": {"hue": [5, 20], "saturation": [150, 255], "value": [90, 250]},
+                              "min_area_px": 20.0})
+    assert (measured.hue_min, measured.saturation_min, measured.value_max) == (5, 150, 250)
+    assert measured.min_area_px == 20.0
+    assert ball_detector({**ball, "colour": "white"}).scene_contrast_min > 0
+
+
 def test_detections_table_is_an_artifact(scored, tmp_path):
     found, _, _ = scored
     assert found.dtypes["time_ns"] == np.int64 and found.dtypes["detected"] == np.bool_
@@ -121,9 +141,9 @@ def test_a_corrupt_frame_is_marked_logged_skipped_and_tracking_restarts(twin_str
     searched_around = []
     real_detect = detection.detect_ball
 
-    def spy(image, detector, previous_uv=None, velocity=None):
+    def spy(image, detector, previous_uv=None, velocity=None, scene=None):
         searched_around.append(previous_uv)
-        return real_detect(image, detector, previous_uv, velocity)
+        return real_detect(image, detector, previous_uv, velocity, scene)
 
     monkeypatch.setattr(detection, "detect_ball", spy)
     with caplog.at_level(logging.WARNING, logger=detection.__name__):

@@ -63,6 +63,7 @@ rule detection:
     params:
         reading=lambda wc: camera_reading(wc.session, wc.cam),
         strict=PERCEPTION["strict_mcap"],
+        ball=PERCEPTION["ball"],
         code=code("detection"),
     log:
         "logs/detection/{session}_{cam}.log",
