@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from pingpong.common.camera import Camera
-from pingpong.frames import MODEL_JOINT_IDS
+from pingpong.frames import MODEL_JOINT_IDS, MODEL_JOINTS
 from pingpong.perception.association import _median_error, associate, people_arrays
 from pingpong.perception.calibration import load_cameras
 from pingpong.perception.pose2d import pose2d_table
@@ -56,7 +56,7 @@ def _tables(cameras, people, rng, noise_px=0.5):
 
 def _joints(pose, slot):
     rows = pose[pose["player"] == slot]
-    return np.stack([rows[[f"j{j:02d}_{a}" for a in "xyz"]].to_numpy() for j in MODEL_JOINT_IDS], axis=1)
+    return np.stack([rows[[f"{j}_{a}" for a in "xyz"]].to_numpy() for j in MODEL_JOINTS], axis=1)
 
 
 def _run(cameras, tables, scene=SCENE):
@@ -121,7 +121,7 @@ def test_a_split_track_and_an_extra_detection_cost_no_frame(rig):
               (NEAR + [1.2, 0.0, 0.0], {1: duplicate})]
     pose, report = _run(rig, _tables(rig, people, rng))
     assert report["frames_kept"][:, 0].tolist() == [N_FRAMES] * 3
-    assert (pose.loc[pose["player"] == "near", "j02_n"] == 3).all()
+    assert (pose.loc[pose["player"] == "near", "RShoulder_views"] == 3).all()
 
 
 def test_a_lab_frame_is_an_error_in_players_mode_and_found_in_subjects_mode(rig):

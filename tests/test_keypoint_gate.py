@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 
 from pingpong.common.camera import Camera, look_at
-from pingpong.frames import MODEL_JOINT_IDS
+from pingpong.frames import MODEL_JOINTS
 from pingpong.perception.association import associate, people_arrays
 from pingpong.perception.pose3d import pose3d_table
 from pingpong.perception.scene import Scene
@@ -145,8 +145,8 @@ def plain_dlt(cameras, px) -> np.ndarray:
 def pose_joints(pose: pd.DataFrame, slot: str) -> tuple[np.ndarray, np.ndarray]:
     """A slot's joints (F * J, 3) and their view counts (F * J,) from a POSE3D table, frame-major."""
     rows = pose[pose["player"] == slot]
-    xyz = np.stack([rows[[f"j{j:02d}_{a}" for a in "xyz"]].to_numpy() for j in MODEL_JOINT_IDS], axis=1)
-    n = np.stack([rows[f"j{j:02d}_n"].to_numpy() for j in MODEL_JOINT_IDS], axis=1)
+    xyz = np.stack([rows[[f"{j}_{a}" for a in "xyz"]].to_numpy() for j in MODEL_JOINTS], axis=1)
+    n = np.stack([rows[f"{j}_views"].to_numpy() for j in MODEL_JOINTS], axis=1)
     return xyz.reshape(-1, 3), n.reshape(-1)
 
 

@@ -21,6 +21,7 @@ from workflow_util import ROOT, copy_checkout, snakemake
 
 from pingpong.common.camera import Camera
 from pingpong.common.seeding import rng_for
+from pingpong.curation.tracks import JOINT_XYZ
 from pingpong.frames import MODEL_JOINT_IDS
 from pingpong.io.calibration_import import change_world_frame, export_anipose_toml
 from pingpong.perception.calibration import load_cameras
@@ -135,8 +136,7 @@ def test_joints_match_the_truth_in_the_labs_frame(lab_run, tiny_run):
     root, _ = lab_run
     pose = pd.read_parquet(root / "interim/pose3d/lab01.parquet")
     times, truth = truth_in_lab(tiny_run)
-    cols = [f"j{j:02d}_{a}" for j in MODEL_JOINT_IDS for a in "xyz"]
-    joints = pose[cols].to_numpy().reshape(len(pose), -1, 3)  # (rows, 8, 3): a subject in a frame
+    joints = pose[list(JOINT_XYZ)].to_numpy().reshape(len(pose), -1, 3)  # (rows, 8, 3): a subject in a frame
     true = truth[np.searchsorted(times, pose["time_ns"].to_numpy())]  # (rows, 4 people, 8, 3)
     error = np.linalg.norm(joints[:, None] - true, axis=-1)
     with np.errstate(all="ignore"), warnings.catch_warnings():

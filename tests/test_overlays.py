@@ -6,7 +6,9 @@ import numpy as np
 import pandas as pd
 
 from pingpong.common.camera import Camera, look_at
+from pingpong.frames import MODEL_JOINTS
 from pingpong.io.camera_streams import CameraFrame
+from pingpong.perception.schemas import POSE3D_JOINT_COLUMNS
 from pingpong.reports.overlays import BALL_BGR, PLAYER_BGR, draw_overlay, overlay_times, session_overlay
 
 
@@ -21,8 +23,7 @@ def tables(n=50):
     ball = pd.DataFrame({"time_ns": time_ns, "x": 0.1, "y": 0.0, "z": 0.3, "n_views": 2,
                          "reproj_rms_px": 0.1})
     ball.loc[:9, ["x", "y", "z"]] = np.nan  # the ball unseen in the first 10 frames
-    joints = {f"j{j:02d}_{a}": v for j in (2, 3, 4, 5, 6, 7, 9, 12)
-              for a, v in zip("xyzn", (0.3, 1.5, 1.0, 2), strict=True)}
+    joints = dict(zip(POSE3D_JOINT_COLUMNS, np.tile((0.3, 1.5, 1.0, 2, 0.5), len(MODEL_JOINTS)), strict=True))
     pose = pd.DataFrame({"time_ns": time_ns, "player": "near", **joints})
     detections = pd.DataFrame({"time_ns": time_ns, "u": 250.0, "v": 170.0, "area_px": 20, "detected": True,
                                "decode_ok": True})

@@ -13,13 +13,20 @@ import numpy as np
 import pytest
 
 from pingpong.common.artifacts import Provenance, read_table, write_table
+from pingpong.curation.tracks import JOINT_VIEWS
 from pingpong.frames import BODY25, MODEL_JOINT_IDS
 from pingpong.io.openpose_json import BODY25_NAME, KEYPOINT_MODELS, write_keypoints_json
 from pingpong.perception.association import associate
-from pingpong.perception.pose2d import MIN_CONFIDENCE, model_joints, pose2d_table, tracked_people
+from pingpong.perception.pose2d import (
+    MIN_CONFIDENCE,
+    model_joints,
+    model_keypoints,
+    pose2d_table,
+    tracked_people,
+)
 from pingpong.perception.pose3d import PoseSceneError, pose3d_table
 from pingpong.perception.scene import default_players_scene
-from pingpong.perception.schemas import POSE2D
+from pingpong.perception.schemas import POSE2D, POSE2D_VALUES, joint_columns
 from pingpong.perception.triangulation import reprojection_gate_px
 from pingpong.twin.openpose_sim import LIMB_SWAPS, default_keypoint_errors, simulate_openpose
 from pingpong.twin.players import bystander_joints
@@ -94,10 +101,11 @@ def test_table_from_an_openpose_folder(twin, tmp_path):
         write_keypoints_json(tmp_path, "s00_cam0", frame, frame_people[detected])
     time_ns = 1_767_225_600_000_000_000 + 10_000_000 * np.arange(len(people), dtype=np.int64)
     table = pose2d_table(tmp_path, time_ns)
-    assert list(table.columns) == list(POSE2D.columns)
+    assert list(table.columns) == ["time_ns", "person", *joint_columns(BODY25, POSE2D_VALUES)]
+    assert set(POSE2D.columns) <= set(table.columns)
     assert table.time_ns.unique().tolist() == time_ns.tolist()
     tracked, track = tracked_people(people)
-    expected = model_joints(tracked)[track >= 0]
+    expected = model_joints(tracked, joints=BODY25)[track >= 0]
     assert len(table) == len(expected) + ((track < 0).all(axis=1)).sum()
     rows = table[table.person >= 0].sort_values(["time_ns", "person"])
     f, lane = np.nonzero(track >= 0)
@@ -129,9 +137,9 @@ def _write_in_model_order(folder, people, model):
 
 @pytest.mark.parametrize("model", ["BODY_25B", "COCO", "HALPE_26"])
 def test_table_from_any_model_and_layout(twin, tmp_path, model):
-    """The twin's people written in another model's order give the BODY_25 data's model joints: the
-    8 joints map by name, the rest differs only where the model lacks a BODY_25 joint (a derived neck
-    or mid-hip, no feet in COCO), which here moves no assignment."""
+    """The twin's people written in another model's order give the BODY_25 data's keypoints that the
+    model has, mapped by name (the 8 model joints among them); the tracking differs only where the model
+    lacks a BODY_25 joint (a derived neck or mid-hip, no feet in COCO), which here moves no assignment."""
     _, cameras, keypoints, _ = twin
     people = keypoints[0][:60]
     time_ns = 10_000_000 * np.arange(len(people), dtype=np.int64)
@@ -141,9 +149,13 @@ def test_table_from_any_model_and_layout(twin, tmp_path, model):
         _write_in_model_order(tmp_path / name, people, name)
         tables[name] = pose2d_table(tmp_path / name, time_ns, model=name, pattern="dotted")
     table = tables[model]
-    assert list(table.columns) == list(POSE2D.columns)
+    names = model_keypoints(model)  # the model's own keypoints by BODY_25 name, no derived neck or mid-hip
+    assert list(table.columns) == ["time_ns", "person", *joint_columns(names, POSE2D_VALUES)]
+    assert set(POSE2D.columns) <= set(table.columns)
+    assert len(names) == {"BODY_25B": 23, "COCO": 18, "HALPE_26": 25}[model]
     assert np.isfinite(table.filter(regex="_u$").to_numpy()).mean() > 0.5
-    np.testing.assert_array_equal(table.iloc[:, 2:].to_numpy(), tables["BODY_25"].iloc[:, 2:].to_numpy())
+    shared = table.columns[2:]
+    np.testing.assert_array_equal(table[shared].to_numpy(), tables["BODY_25"][shared].to_numpy())
     count = 3 * len(KEYPOINT_MODELS[model])
     if count == 75:  # BODY_25B read as the default BODY_25: no count can tell, the skeletons' lengths do
         with pytest.raises(ValueError, match=r"s00_cam0.\d{5}.json: keypoints declared BODY_25 look like "
@@ -294,10 +306,10 @@ def test_missing_people_and_empty_frames(twin, tmp_path):
     near, far = (pose[pose.player == p].set_index("time_ns") for p in ("near", "far"))
     for rows in (near.iloc[100:150], far.iloc[100:150], far.iloc[200:260]):
         assert rows.filter(regex="_[xyz]$").isna().all(axis=None)
-        assert (rows.filter(regex="_n$") == 0).all(axis=None)
+        assert (rows.filter(regex="_views$") == 0).all(axis=None)
     # the near player still found (the two views' joints may disagree in a frame: the twin's detector errs
     # as COCO's sigmas say, swaps limbs and hides joints behind the trunk; 1 of these 60 frames)
-    assert (near.iloc[200:260].filter(regex="_n$") >= 2).any(axis=1).mean() >= 0.95
+    assert (near.iloc[200:260][list(JOINT_VIEWS)] >= 2).any(axis=1).mean() >= 0.95
 
     for n_people in (0, 3):  # nobody, or only undetected people, in every frame of one camera
         _, choice = _associated(cameras, [people[0], np.zeros((len(bodies), n_people, 25, 3))])

@@ -27,7 +27,7 @@ from pingpong.curation.schemas import (
     dataset_arrays,
 )
 from pingpong.curation.segments import CurationRules, curate_segments, find_segments
-from pingpong.curation.tracks import JOINT_XYZ
+from pingpong.curation.tracks import JOINT_VIEWS, JOINT_XYZ
 from pingpong.frames import BALL_RADIUS, FRAME_NS, MODEL_JOINT_IDS, N_INPUT, ROT_COLUMNS, TABLE_HALF_WIDTH
 from pingpong.twin.session import FaultRates, ball_positions_at, simulate_session
 
@@ -51,12 +51,13 @@ def _seen_pose(truth, frames, rng):
     parts = []
     for player in ("near", "far"):
         rows = truth.people[truth.people["person"] == player].set_index("time_ns").reindex(frames)
-        joints = rows[JOINT_XYZ].to_numpy() + rng.normal(0, 0.015, (len(frames), len(JOINT_XYZ)))
+        truth_xyz = rows[[f"j{j:02d}_{a}" for j in MODEL_JOINT_IDS for a in "xyz"]].to_numpy()  # BODY_25 ids
+        joints = truth_xyz + rng.normal(0, 0.015, (len(frames), len(JOINT_XYZ)))
         thrown = np.flatnonzero(rng.random(len(frames)) < 0.01)  # a joint put on the wrong limb
         joints[thrown, 3 * rng.integers(0, len(MODEL_JOINT_IDS), len(thrown))] += 0.4
         parts.append(pd.DataFrame({"time_ns": frames, "player": player,
                                    **dict(zip(JOINT_XYZ, joints.T, strict=True)),
-                                   **{f"j{j:02d}_n": 4 for j in MODEL_JOINT_IDS}}))
+                                   **dict.fromkeys(JOINT_VIEWS, 4)}))
     return pd.concat(parts, ignore_index=True)
 
 
@@ -94,7 +95,7 @@ def _spoil(shots, frames, pose, paddle, rng):
             paddle.loc[rows, ["px", "py", "pz", *ROT_COLUMNS]] = np.nan
             spoilt[shot.t_hit_ns] = "paddle_gaps"
         else:
-            pose.loc[(pose["player"] == shot.hitter) & gap, ["j04_x", "j04_y", "j04_z"]] = np.nan
+            pose.loc[(pose["player"] == shot.hitter) & gap, ["RWrist_x", "RWrist_y", "RWrist_z"]] = np.nan
             spoilt[shot.t_hit_ns] = "pose_gaps"
     return spoilt
 

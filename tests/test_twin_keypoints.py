@@ -13,6 +13,7 @@ from workflow_util import ROOT
 from pingpong.common.camera import Camera
 from pingpong.common.config import schema_defaults
 from pingpong.common.seeding import rng_for
+from pingpong.curation.tracks import JOINT_XYZ
 from pingpong.frames import MODEL_JOINT_IDS
 from pingpong.io.openpose_json import format_keypoints_json, keypoints_filename, read_keypoints_folder
 from pingpong.reports.twin_keypoints import (
@@ -237,8 +238,7 @@ def test_the_pipeline_never_takes_a_false_person_for_a_player(tiny_run):
     pose = pd.read_parquet(tiny_run / "interim/pose3d/s00.parquet")
     for player in ("near", "far"):
         rows = pose[pose["player"] == player]
-        cols = [f"j{j:02d}_{a}" for j in MODEL_JOINT_IDS for a in "xyz"]
-        est = rows[cols].to_numpy().reshape(len(rows), len(MODEL_JOINT_IDS), 3)
+        est = rows[JOINT_XYZ].to_numpy().reshape(len(rows), len(MODEL_JOINT_IDS), 3)
         truth = _truth_people(tiny_run, "s00", len(rows))
         found = np.isfinite(est).all(-1).any(-1)
         with warnings.catch_warnings():

@@ -1,4 +1,6 @@
 # Perception: raw/ -> calibration, ball detections, 2D poses, paddles, 3D signals (interim/).
+from pingpong.perception.scene import Scene
+
 PERCEPTION = config["perception"]
 
 
@@ -159,9 +161,29 @@ rule triangulation:
         association_share=PERCEPTION["association_share"],
         pose_gate_noise_factor=PERCEPTION["pose_gate_noise_factor"],
         pose_confidence_weights=PERCEPTION["pose_confidence_weights"],
+        pose_view_policy=PERCEPTION["pose_view_policy"],
+        pose_max_mean_reproj_px=PERCEPTION["pose_max_mean_reproj_px"],
         code=code("triangulation"),
     log:
         "logs/triangulation/{session}.log",
+    conda:
+        CONDA_ENV
+    script:
+        STAGE_SCRIPT
+
+
+rule pose_trc:
+    input:
+        pose3d="interim/pose3d/{session}.parquet",
+    output:
+        trc="interim/trc/{session}/{slot}.trc",
+    wildcard_constraints:
+        slot=one_of(Scene.from_config(PERCEPTION["scene"]).slots),
+    params:
+        slot="{slot}",
+        code=code("pose_trc"),
+    log:
+        "logs/pose_trc/{session}_{slot}.log",
     conda:
         CONDA_ENV
     script:

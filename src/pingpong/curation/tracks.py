@@ -6,13 +6,14 @@ Every table here is put on the ball3d table's frames (the 100 Hz camera clock, o
 import numpy as np
 import pandas as pd
 
-from pingpong.frames import MODEL_JOINT_IDS, ROT_COLUMNS
+from pingpong.frames import MODEL_JOINTS, ROT_COLUMNS
+from pingpong.perception.schemas import joint_columns
 
 PLAYER_END = {"near": "+y", "far": "-y"}  # the end of the table each player stands at
 OPPONENT_END = {"near": "-y", "far": "+y"}
 PLAYER_SIGN = {"near": 1.0, "far": -1.0}
-JOINT_XYZ = [f"j{j:02d}_{a}" for j in MODEL_JOINT_IDS for a in "xyz"]
-JOINT_VIEWS = [f"j{j:02d}_n" for j in MODEL_JOINT_IDS]
+JOINT_XYZ = list(joint_columns(MODEL_JOINTS, "xyz"))  # the pose3d table's model joints
+JOINT_VIEWS = list(joint_columns(MODEL_JOINTS, ("views",)))
 PADDLE_VALUES = ["px", "py", "pz", *ROT_COLUMNS]
 
 

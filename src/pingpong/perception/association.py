@@ -27,7 +27,7 @@ import pandas as pd
 from scipy.optimize import linear_sum_assignment
 
 from pingpong.common.camera import Camera
-from pingpong.frames import MODEL_JOINT_IDS
+from pingpong.frames import MODEL_JOINTS
 from pingpong.perception.pose2d import nanmedian_last
 from pingpong.perception.scene import Scene
 from pingpong.perception.triangulation import reprojection_errors, triangulate_dlt
@@ -42,19 +42,20 @@ TORSO_JOINTS = ((0, 6), (3, 7))  # model joints (MODEL_JOINT_IDS order): each sh
 NEW_LABEL_M = 1e3  # cost of starting a subject label afresh rather than continuing one (m)
 
 
-def people_arrays(table: pd.DataFrame, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """One camera's POSE2D table as arrays on the clock times (F,): pixels (F, P, J, 2) (NaN gaps),
-    confidences (F, P, J) and person ids (F, P) (-1 where a frame has fewer people)."""
+def people_arrays(table: pd.DataFrame, times: np.ndarray, joints=MODEL_JOINTS
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One camera's POSE2D table as arrays on the clock times (F,): pixels (F, P, J, 2) (NaN gaps) and
+    confidences (F, P, J) of the joints (names; the 8 model joints by default), and person ids (F, P)
+    (-1 where a frame has fewer people)."""
     rows = table[table["person"] >= 0]
     frame = np.searchsorted(times, rows["time_ns"].to_numpy())
     slot = rows.groupby("time_ns").cumcount().to_numpy()
     n_people = slot.max() + 1 if len(slot) else 0
-    n_joints = len(MODEL_JOINT_IDS)
-    px = np.full((len(times), n_people, n_joints, 2), np.nan)
-    conf = np.zeros((len(times), n_people, n_joints))
+    px = np.full((len(times), n_people, len(joints), 2), np.nan)
+    conf = np.zeros((len(times), n_people, len(joints)))
     person = np.full((len(times), n_people), -1)
-    px[frame, slot] = np.stack([rows[[f"j{j:02d}_u", f"j{j:02d}_v"]].to_numpy() for j in MODEL_JOINT_IDS], 1)
-    conf[frame, slot] = rows[[f"j{j:02d}_conf" for j in MODEL_JOINT_IDS]].to_numpy()
+    px[frame, slot] = np.stack([rows[[f"{j}_u", f"{j}_v"]].to_numpy() for j in joints], 1)
+    conf[frame, slot] = rows[[f"{j}_conf" for j in joints]].to_numpy()
     person[frame, slot] = rows["person"].to_numpy()
     return px, conf, person
 

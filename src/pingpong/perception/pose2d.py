@@ -24,9 +24,9 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import linear_sum_assignment
 
-from pingpong.frames import BODY25, MODEL_JOINT_IDS
-from pingpong.io.openpose_json import read_keypoints_folder
-from pingpong.perception.schemas import MODEL_JOINT_COLUMNS
+from pingpong.frames import BODY25, MODEL_JOINTS
+from pingpong.io.openpose_json import BODY25_NAME, model_keypoint_names, read_keypoints_folder
+from pingpong.perception.schemas import POSE2D_VALUES, joint_columns
 
 MIN_CONFIDENCE = 0.3  # config perception.pose_min_confidence: joints below are gaps
 
@@ -177,10 +177,20 @@ def fix_limb_swaps(players: np.ndarray) -> np.ndarray:
     return out
 
 
-def model_joints(players: np.ndarray, min_confidence: float = MIN_CONFIDENCE) -> np.ndarray:
-    """(F, S, 8, 3) [u px, v px, confidence] of the model joints; u, v are NaN (a gap) where the
-    confidence is below min_confidence or the joint was not detected (confidence 0 is kept)."""
-    joints = np.asarray(players, float)[:, :, list(MODEL_JOINT_IDS)].copy()
+def model_keypoints(model: str) -> tuple[str, ...]:
+    """The declared model's keypoints that BODY_25 names, in the model's order (BODY_25 names): the
+    joints the pose tables carry. BODY_25B's UpperNeck and HeadTop and Halpe's Head have no BODY_25 place
+    in the reader's layout (`openpose_json.to_body25`) and are not carried."""
+    names = (BODY25_NAME.get(name, name) for name in model_keypoint_names(model))
+    return tuple(name for name in names if name in BODY25)
+
+
+def model_joints(players: np.ndarray, min_confidence: float = MIN_CONFIDENCE,
+                 joints=MODEL_JOINTS) -> np.ndarray:
+    """(F, S, J, 3) [u px, v px, confidence] of the joints (BODY_25 names; the 8 model joints by default)
+    of players (F, S, 25, 3); u, v are NaN (a gap) where the confidence is below min_confidence or the
+    joint was not detected (confidence 0 is kept)."""
+    joints = np.asarray(players, float)[:, :, [BODY25.index(name) for name in joints]].copy()
     confidence = joints[..., 2]
     joints[(confidence < min_confidence) | (confidence <= 0), :2] = np.nan
     return joints
@@ -188,28 +198,29 @@ def model_joints(players: np.ndarray, min_confidence: float = MIN_CONFIDENCE) ->
 
 def pose2d_table(folder: str | os.PathLike, time_ns: np.ndarray, min_confidence: float = MIN_CONFIDENCE,
                  model: str = "BODY_25", pattern: str | re.Pattern | None = None) -> pd.DataFrame:
-    """Every person's model joints from one camera's OpenPose folder, one row per (frame, person).
+    """Every person's keypoints from one camera's OpenPose folder, one row per (frame, person).
 
     time_ns (F,): the camera's frame times; the folder must hold frames 0..F-1, files named by
     pattern (`openpose_json.layout_patterns`: any known layout by default) holding keypoints of the
     declared model (`openpose_json.KEYPOINT_MODELS`), mapped by name to BODY_25. Columns: time_ns,
-    person (the tracklet id, -1 on the one row of a frame with nobody), and per model joint j (BODY_25
-    index): j{j:02d}_u, _v (distorted pixels) and _conf (OpenPose's confidence, 0 where not detected);
-    gaps have u, v NaN. Rows are ordered by time, then person.
+    person (the tracklet id, -1 on the one row of a frame with nobody), and per joint of
+    model_keypoints(model) (the 8 model joints among them): {name}_u, _v (distorted pixels) and _conf
+    (OpenPose's confidence, 0 where not detected); gaps have u, v NaN. Rows are ordered by time, then person.
     """
     time_ns = np.asarray(time_ns, np.int64)
     # one file per frame time: extra or missing files are named there
     _, keypoints = read_keypoints_folder(folder, model, pattern, n_frames=len(time_ns))
     people, track = tracked_people(keypoints)
-    joints = model_joints(people, min_confidence)  # (F, L, 8, 3)
+    names = model_keypoints(model)
+    joints = model_joints(people, min_confidence, names)  # (F, L, J, 3)
     f, lane = np.nonzero(track >= 0)
     empty = np.flatnonzero((track < 0).all(axis=1))  # a row of gaps keeps such a frame on the clock
     frame = np.concatenate([f, empty])
     person = np.concatenate([track[f, lane], np.full(len(empty), -1)])
-    gaps = model_joints(np.zeros((len(empty), 1, 25, 3)))[:, 0]
+    gaps = model_joints(np.zeros((len(empty), 1, 25, 3)), joints=names)[:, 0]
     rows = np.concatenate([joints[f, lane], gaps]).reshape(len(frame), -1)
     order = np.lexsort((person, frame))
-    table = pd.DataFrame(rows[order], columns=list(MODEL_JOINT_COLUMNS))
+    table = pd.DataFrame(rows[order], columns=list(joint_columns(names, POSE2D_VALUES)))
     table.insert(0, "person", person[order])
     table.insert(0, "time_ns", time_ns[frame[order]])
     return table

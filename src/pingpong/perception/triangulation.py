@@ -67,16 +67,20 @@ def reprojection_gate_px(cameras: list[Camera], share_of_diagonal: float) -> np.
 
 
 def triangulate_robust(
-    cameras: list[Camera], pixels_distorted: np.ndarray, max_reproj_px, min_views: int = 2, confidence=None
+    cameras: list[Camera], pixels_distorted: np.ndarray, max_reproj_px, min_views: int = 2, confidence=None,
+    max_mean_px: float | None = None,
 ) -> dict[str, np.ndarray]:
     """Triangulate points (N, 3) seen in distorted pixels (N, C, 2), NaN where a camera missed them.
 
     Tries every camera subset with at least `min_views` views, largest first; a point takes the
     largest subset it is seen in whose views all reproject within `max_reproj_px` (px: one gate, or
     one per camera (C,), see reprojection_gate_px), the lowest RMS among subsets of that size, so
-    one bad view is dropped rather than pulling the point off. Points with no such subset are NaN
-    with n_views 0. Loops over the (at most 2^C) subsets, never over points. For joints pass
-    N = frames * joints. confidence (N, C), when given, weights each view's DLT rows (triangulate_dlt).
+    one bad view is dropped rather than pulling the point off. With max_mean_px (px) a subset is
+    accepted instead when its views' mean reprojection error is within it, the lowest mean among
+    subsets of that size: Pose2Sim's rule, which drops the worst views until the mean is under its
+    threshold. Points with no such subset are NaN with n_views 0. Loops over the (at most 2^C)
+    subsets, never over points. For joints pass N = frames * joints. confidence (N, C), when given,
+    weights each view's DLT rows (triangulate_dlt).
 
     Returns points (N, 3) in the cameras' world frame, n_views (N,), reproj_rms_px (N,) over
     the used views, and used_mask (N, C).
@@ -99,7 +103,7 @@ def triangulate_robust(
     used = np.zeros((n_points, n_cams), bool)
     unresolved = seen.sum(axis=1) >= min_views
     for size in range(n_cams, min_views - 1, -1):
-        best_rms = np.full(n_points, np.inf)
+        best = np.full(n_points, np.inf)  # the score of the subset taken: RMS, or mean (max_mean_px)
         for subset in combinations(range(n_cams), size):
             views = list(subset)
             idx = np.flatnonzero(unresolved & seen[:, views].all(axis=1))
@@ -110,14 +114,19 @@ def triangulate_robust(
                                         weights)
             err = reprojection_errors([cameras[c] for c in views], candidate, px[idx][:, views])
             candidate_rms = np.sqrt(np.mean(err**2, axis=1))
-            better = (err <= gate[views]).all(axis=1) & (candidate_rms < best_rms[idx])
+            if max_mean_px is None:
+                accepted, score = (err <= gate[views]).all(axis=1), candidate_rms
+            else:
+                score = np.mean(err, axis=1)
+                accepted = score <= max_mean_px
+            better = accepted & (score < best[idx])
             take = idx[better]
             points[take] = candidate[better]
             rms[take] = candidate_rms[better]
-            best_rms[take] = candidate_rms[better]
+            best[take] = score[better]
             used[take] = False
             used[np.ix_(take, views)] = True
-        unresolved &= ~np.isfinite(best_rms)
+        unresolved &= ~np.isfinite(best)
     return {"points": points, "n_views": used.sum(axis=1), "reproj_rms_px": rms, "used_mask": used}
 
 

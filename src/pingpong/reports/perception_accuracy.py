@@ -9,7 +9,7 @@ import pandas as pd
 from scipy.spatial.transform import Rotation, Slerp
 
 from pingpong.common.camera import Camera
-from pingpong.frames import ROT_COLUMNS
+from pingpong.frames import BODY25, ROT_COLUMNS
 from pingpong.reports.tables import threshold_row as _row
 
 
@@ -70,8 +70,9 @@ def pose3d_rows(pose3d: pd.DataFrame, people: pd.DataFrame, joint_ids) -> list[d
         est = pose3d[pose3d["player"] == player].set_index("time_ns")
         true = people[people["person"] == player].set_index("time_ns").loc[est.index]
         for j in joint_ids:
-            cols = [f"j{j:02d}_{a}" for a in "xyz"]
-            errors.append(np.linalg.norm(est[cols].to_numpy() - true[cols].to_numpy(), axis=1))
+            true_xyz = true[[f"j{j:02d}_{a}" for a in "xyz"]].to_numpy()  # the truth's: by BODY_25 index
+            est_xyz = est[[f"{BODY25[j]}_{a}" for a in "xyz"]].to_numpy()  # pose3d's: by name
+            errors.append(np.linalg.norm(est_xyz - true_xyz, axis=1))
     # the twin's keypoints err as a detector's (twin.keypoint_errors); OpenPose's multi-camera joint centres
     # lie 30-50 mm off marker-based ones at the hip and knee (Needham et al. 2021, Sci Rep, abstract):
     # 1.5x that upper figure (the tiny run: 5.3 cm; 1.3 cm before issue 41's detector errors)

@@ -12,7 +12,9 @@ from pingpong.perception.schemas import BALL3D, PADDLE, POSE3D
 def main(ctx):
     p = ctx.params
     i = ctx.input
-    ball3d, pose3d = read_table(i.ball3d, BALL3D), read_table(i.pose3d, POSE3D)
+    ball3d = read_table(i.ball3d, BALL3D)
+    # the model joints alone: curation cleans and low-passes those, its tables carry no other keypoint
+    pose3d = read_table(i.pose3d, POSE3D, columns=list(POSE3D.columns))
     ball, pose, events = filter_session(ball3d, pose3d, read_table(i.paddle, PADDLE), p["cutoff_ball_hz"],
                                         p["cutoff_pose_hz"])
     causal_ball, causal_pose = causal_session_inputs(ball3d, pose3d, cutoff_ball_hz=None, cutoff_pose_hz=None)

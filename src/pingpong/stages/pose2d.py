@@ -1,4 +1,4 @@
-"""Rule pose2d: every person's 8 model joints in one camera's OpenPose output, followed over time (who is
+"""Rule pose2d: every person's keypoints in one camera's OpenPose output, followed over time (who is
 who is matched across cameras by the triangulation rule)."""
 
 import logging

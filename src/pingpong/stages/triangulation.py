@@ -1,4 +1,5 @@
-"""Rule triangulation: the ball and both players' joints in 3D (table frame) on the camera clock."""
+"""Rule triangulation: the ball and the scene's people's joints (every keypoint of the declared model) in 3D
+(table frame) on the camera clock."""
 
 import logging
 
@@ -22,8 +23,11 @@ def main(ctx):
     write_table(ball, ctx.output.ball3d, BALL3D, prov)
     pose, report = pose3d_table(cameras, [read_table(f, POSE2D) for f in ctx.input.pose2d],
                                 Scene.from_config(p["scene"]), p["association_share"], p["max_reproj_share"],
-                                p["pose_gate_noise_factor"], p["pose_confidence_weights"], p["min_views"])
+                                p["pose_gate_noise_factor"], p["pose_confidence_weights"], p["min_views"],
+                                p["pose_view_policy"], p["pose_max_mean_reproj_px"])
     write_table(pose, ctx.output.pose3d, POSE3D, prov)
+    logging.info("joints' view policy %s (mean_error_under's threshold %.1f px)", p["pose_view_policy"],
+                 p["pose_max_mean_reproj_px"])
     log_pose_report(report)
 
 
