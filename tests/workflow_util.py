@@ -9,6 +9,7 @@ from pathlib import Path
 import yaml
 
 from pingpong.common.config import schema_defaults
+from pingpong.common.raw_ownership import OWNED
 
 ROOT = Path(__file__).resolve().parents[1]
 SNAKEMAKE = [sys.executable, "-m", "snakemake"]
@@ -42,11 +43,12 @@ def snakemake(root: Path, *args, configfile="config/test.yaml", check=True) -> s
 
 
 def mtimes(root: Path, folders=("raw", "interim", "processed", "reports")) -> dict[str, int]:
-    """Modification time (ns) of every artifact under the data folders."""
+    """Modification time (ns) of every artifact under the data folders (not the twin's ownership records,
+    which are bookkeeping: pingpong.common.raw_ownership)."""
     out = {}
     for folder in folders:
         for p in (root / folder).rglob("*"):
-            if p.is_file() and p.name != ".gitkeep":
+            if p.is_file() and p.name != ".gitkeep" and OWNED not in p.relative_to(root).as_posix():
                 out[str(p.relative_to(root))] = p.stat().st_mtime_ns
     return out
 
