@@ -128,6 +128,16 @@ def truth_in_lab(tiny_run) -> tuple[np.ndarray, np.ndarray]:
     return times, xyz @ T_LAB_FROM_TABLE[:3, :3].T + T_LAB_FROM_TABLE[:3, 3]
 
 
+def test_the_walkthroughs_trc_holds_the_subjects_frames(lab_run):
+    """Step 4's TRC target, as the README writes it: a marker file of the subject's keypoints, a row per
+    frame of its pose3d slot (tests/test_trc.py reads TRC back against pose3d value for value)."""
+    root, _ = lab_run
+    lines = (root / "interim/trc/lab01/subject0.trc").read_text().splitlines()
+    pose = pd.read_parquet(root / "interim/pose3d/lab01.parquet")
+    assert lines[0].startswith("PathFileType\t4")
+    assert len(lines) - 6 == (pose["player"] == "subject0").sum()  # 6 header lines, then the frames
+
+
 def test_joints_match_the_truth_in_the_labs_frame(lab_run, tiny_run):
     """Each subject's joints are those of the nearest true person: per frame, the median error of every
     joint found is within TOLERANCE_M in >= 95 % of the frames with any; no subject is made of the
