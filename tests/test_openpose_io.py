@@ -8,9 +8,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from pingpong.frames import BODY25, MODEL_JOINT_IDS
+from pingpong.frames import BODY25, MODEL_JOINT_IDS, MODEL_JOINTS
 from pingpong.io.openpose_json import (
-    BODY25_NAME,
     KEYPOINT_MODELS,
     MIN_PEOPLE,
     KeypointsFileError,
@@ -19,9 +18,11 @@ from pingpong.io.openpose_json import (
     keypoints_filename,
     list_frame_files,
     model_comparison,
+    pose_keypoints,
     read_keypoints_folder,
     read_keypoints_json,
-    to_body25,
+    reader_layout,
+    to_reader_layout,
     write_keypoints_json,
 )
 from pingpong.twin.openpose_sim import (
@@ -79,12 +80,14 @@ def test_empty_frame_format():
 # A person whose BODY_25 joint j is at pixel (10 + 7j, 300 - 5j) with confidence 0.5 + 0.02j; a model's
 # own joints that BODY_25 lacks (UpperNeck, HeadTop, Head) sit at (1, 2) with confidence 0.9.
 KNOWN = np.array([(10 + 7 * j, 300 - 5 * j, 0.5 + 0.02 * j) for j in range(25)])
+OWN = (1.0, 2.0, 0.9)
+# each model's keypoints that BODY_25 has no name for, in the model's order
+OWN_KEYPOINTS = {"BODY_25": (), "BODY_25B": ("UpperNeck", "HeadTop"), "COCO": (), "HALPE_26": ("Head",)}
 
 
 def in_model_order(person: np.ndarray, model: str) -> np.ndarray:
     """(K, 3) a BODY_25 person (25, 3) serialised in the model's keypoint order, by joint name."""
-    names = [BODY25_NAME.get(name, name) for name in KEYPOINT_MODELS[model]]
-    return np.array([person[BODY25.index(n)] if n in BODY25 else (1.0, 2.0, 0.9) for n in names])
+    return np.array([person[BODY25.index(n)] if n in BODY25 else OWN for n in pose_keypoints(model)])
 
 
 def write_model_json(path, people) -> None:
@@ -98,13 +101,29 @@ def midpoint(a: str, b: str) -> np.ndarray:
 
 
 @pytest.mark.parametrize("model", list(KEYPOINT_MODELS))
-def test_every_model_maps_by_name_to_body25(tmp_path, model):
+def test_every_model_keeps_body25s_names_and_its_own(model):
+    """Each keypoint named once, as BODY_25 names the joint (Halpe's Hip is MidHip) or by the model's own
+    name, in the model's order; the 8 model joints in every model."""
+    names = pose_keypoints(model)
+    assert len(names) == len(set(names)) == len(KEYPOINT_MODELS[model])
+    assert set(MODEL_JOINTS) <= set(names)
+    assert tuple(n for n in names if n not in BODY25) == OWN_KEYPOINTS[model]
+    renamed = {own: n for n, own in zip(names, KEYPOINT_MODELS[model], strict=True) if n != own}
+    assert renamed == ({"Hip": "MidHip"} if model == "HALPE_26" else {})
+
+
+@pytest.mark.parametrize("model", list(KEYPOINT_MODELS))
+def test_every_model_reads_by_name(tmp_path, model):
+    """BODY_25's 25 joints by name (Neck and MidHip derived where the model lacks them), then the model's
+    keypoints BODY_25 lacks (BODY_25B's UpperNeck and HeadTop, Halpe's Head) in its order."""
     path = tmp_path / f"cam.{7:05d}.json"
     write_model_json(path, [in_model_order(KNOWN, model), np.zeros((len(KEYPOINT_MODELS[model]), 3))])
     people = read_keypoints_json(path, model)
-    assert people.shape == (2, 25, 3) and (people[1] == 0).all()
+    assert reader_layout(model) == BODY25 + OWN_KEYPOINTS[model]
+    assert people.shape == (2, len(reader_layout(model)), 3) and (people[1] == 0).all()
     np.testing.assert_allclose(people[0, list(MODEL_JOINT_IDS)], KNOWN[list(MODEL_JOINT_IDS)])
-    names = {BODY25_NAME.get(n, n) for n in KEYPOINT_MODELS[model]}
+    assert (people[0, 25:] == OWN).all()
+    names = set(pose_keypoints(model))
     for joint, (a, b) in {"Neck": ("RShoulder", "LShoulder"), "MidHip": ("RHip", "LHip")}.items():
         expected = KNOWN[BODY25.index(joint)] if joint in names else midpoint(a, b)  # derived if lacking
         np.testing.assert_allclose(people[0, BODY25.index(joint)], expected)
@@ -116,7 +135,7 @@ def test_every_model_maps_by_name_to_body25(tmp_path, model):
 def test_a_derived_joint_needs_both_ends():
     person = in_model_order(KNOWN, "BODY_25B")
     person[KEYPOINT_MODELS["BODY_25B"].index("LHip")] = 0  # not detected
-    body = to_body25(person[None], "BODY_25B")[0]
+    body = to_reader_layout(person[None], "BODY_25B")[0]
     assert (body[BODY25.index("MidHip")] == 0).all()
     np.testing.assert_allclose(body[BODY25.index("Neck")], midpoint("RShoulder", "LShoulder"))
 

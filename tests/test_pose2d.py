@@ -14,13 +14,12 @@ import pytest
 
 from pingpong.common.artifacts import Provenance, read_table, write_table
 from pingpong.curation.tracks import JOINT_VIEWS
-from pingpong.frames import BODY25, MODEL_JOINT_IDS
-from pingpong.io.openpose_json import BODY25_NAME, KEYPOINT_MODELS, write_keypoints_json
+from pingpong.frames import BODY25, MODEL_JOINT_IDS, MODEL_JOINTS
+from pingpong.io.openpose_json import KEYPOINT_MODELS, pose_keypoints, write_keypoints_json
 from pingpong.perception.association import associate
 from pingpong.perception.pose2d import (
     MIN_CONFIDENCE,
     model_joints,
-    model_keypoints,
     pose2d_table,
     tracked_people,
 )
@@ -122,40 +121,62 @@ def test_table_from_an_openpose_folder(twin, tmp_path):
         pose2d_table(tmp_path, time_ns)
 
 
+OWN_ABOVE_NOSE_PX = 10.0  # _write_in_model_order's k-th keypoint BODY_25 lacks: (k + 1) x this above the nose
+
+
+def _own_keypoint(person: list, k: int) -> list:
+    """A model's k-th keypoint that BODY_25 lacks (BODY_25B's UpperNeck, HeadTop; Halpe's Head) of a BODY_25
+    person: above its nose, with the nose's confidence."""
+    u, v, confidence = person[BODY25.index("Nose")]
+    return [u, v - (k + 1) * OWN_ABOVE_NOSE_PX, confidence]
+
+
 def _write_in_model_order(folder, people, model):
     """One {name}.{frame:05d}.json per frame of BODY_25 people (F, P, 25, 3), serialised in the model's
-    keypoint order by joint name (joints BODY_25 lacks, such as BODY_25B's HeadTop, undetected)."""
-    names = [BODY25_NAME.get(name, name) for name in KEYPOINT_MODELS[model]]
-    order = [BODY25.index(name) if name in BODY25 else None for name in names]
+    keypoint order by joint name (the keypoints BODY_25 lacks as _own_keypoint places them)."""
+    names = pose_keypoints(model)
+    own = [name for name in names if name not in BODY25]
     for frame, frame_people in enumerate(people):
         detected = frame_people[(frame_people[..., 2] > 0).any(axis=-1)]
-        poses = [[v for j in order for v in (person[j] if j is not None else (0, 0, 0))]
+        poses = [[v for name in names for v in (person[BODY25.index(name)] if name in BODY25
+                                                else _own_keypoint(person, own.index(name)))]
                  for person in detected.tolist()]
         doc = {"version": 1.3, "people": [{"person_id": [-1], "pose_keypoints_2d": pose} for pose in poses]}
         (folder / f"s00_cam0.{frame:05d}.json").write_text(json.dumps(doc))
 
 
-@pytest.mark.parametrize("model", ["BODY_25B", "COCO", "HALPE_26"])
+@pytest.mark.parametrize("model", list(KEYPOINT_MODELS))
 def test_table_from_any_model_and_layout(twin, tmp_path, model):
-    """The twin's people written in another model's order give the BODY_25 data's keypoints that the
-    model has, mapped by name (the 8 model joints among them); the tracking differs only where the model
-    lacks a BODY_25 joint (a derived neck or mid-hip, no feet in COCO), which here moves no assignment."""
+    """The twin's people written in a model's order give every keypoint of the model, in its order: those
+    BODY_25 names as the BODY_25 data give them, by BODY_25's name (the 8 model joints among them), and the
+    others (BODY_25B's UpperNeck and HeadTop, Halpe's Head) by the model's own name, as written. The
+    tracking follows BODY_25's joints and differs only where the model lacks one (a derived neck or
+    mid-hip, no feet in COCO), which here moves no assignment."""
     _, cameras, keypoints, _ = twin
     people = keypoints[0][:60]
     time_ns = 10_000_000 * np.arange(len(people), dtype=np.int64)
     tables = {}
-    for name in ("BODY_25", model):
+    for name in {"BODY_25", model}:
         (tmp_path / name).mkdir()
         _write_in_model_order(tmp_path / name, people, name)
         tables[name] = pose2d_table(tmp_path / name, time_ns, model=name, pattern="dotted")
     table = tables[model]
-    names = model_keypoints(model)  # the model's own keypoints by BODY_25 name, no derived neck or mid-hip
+    names = pose_keypoints(model)  # no derived neck or mid-hip
     assert list(table.columns) == ["time_ns", "person", *joint_columns(names, POSE2D_VALUES)]
-    assert set(POSE2D.columns) <= set(table.columns)
-    assert len(names) == {"BODY_25B": 23, "COCO": 18, "HALPE_26": 25}[model]
+    assert set(POSE2D.columns) <= set(table.columns) and set(MODEL_JOINTS) <= set(names)
+    assert len(names) == len(KEYPOINT_MODELS[model])
     assert np.isfinite(table.filter(regex="_u$").to_numpy()).mean() > 0.5
-    shared = table.columns[2:]
-    np.testing.assert_array_equal(table[shared].to_numpy(), tables["BODY_25"][shared].to_numpy())
+    body25 = tables["BODY_25"]
+    shared = list(joint_columns([name for name in names if name in BODY25], POSE2D_VALUES))
+    np.testing.assert_array_equal(table[shared].to_numpy(), body25[shared].to_numpy())
+    own = [name for name in names if name not in BODY25]
+    assert own == {"BODY_25B": ["UpperNeck", "HeadTop"], "HALPE_26": ["Head"]}.get(model, [])
+    for k, name in enumerate(own):
+        assert table[f"{name}_u"].notna().mean() > 0.5
+        np.testing.assert_array_equal(table[[f"{name}_u", f"{name}_conf"]], body25[["Nose_u", "Nose_conf"]])
+        np.testing.assert_allclose(table[f"{name}_v"], body25["Nose_v"] - (k + 1) * OWN_ABOVE_NOSE_PX)
+    if model == "BODY_25":
+        return
     count = 3 * len(KEYPOINT_MODELS[model])
     if count == 75:  # BODY_25B read as the default BODY_25: no count can tell, the skeletons' lengths do
         with pytest.raises(ValueError, match=r"s00_cam0.\d{5}.json: keypoints declared BODY_25 look like "

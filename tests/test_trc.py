@@ -6,11 +6,19 @@ reads an empty cell as a missing marker and wants 2 + 3 x markers cells a row), 
 import numpy as np
 import pandas as pd
 import pytest
+from test_openpose_io import STANDING, write_model_json
 
+from pingpong.common.artifacts import Provenance, write_table
 from pingpong.common.script import Named, StageContext
 from pingpong.frames import BODY25
-from pingpong.io.trc import write_trc
+from pingpong.io.openpose_json import pose_keypoints
+from pingpong.io.trc import opensim_axes, write_trc
+from pingpong.perception.pose2d import pose2d_table
+from pingpong.perception.pose3d import pose3d_table
+from pingpong.perception.scene import default_players_scene
+from pingpong.perception.schemas import POSE3D
 from pingpong.stages import pose_trc
+from pingpong.twin.rig import make_rig
 from pingpong.twin.truth import JOINT_COLUMNS
 
 PRECISION_M = 0.5e-6  # half the last written decimal of a value in metres
@@ -63,14 +71,51 @@ def test_refuses_what_no_reader_could_split(tmp_path):
         write_trc(tmp_path / "a.trc", np.zeros(3), ["Nose"], np.zeros((2, 1, 3)))
 
 
+def _trc_of(pose3d, slot: str, out):
+    """Rule pose_trc's file of a slot of the pose3d table at path pose3d, read back (read_trc)."""
+    pose_trc.main(StageContext("pose_trc", Named(pose3d=str(pose3d)), Named(trc=str(out)), {"slot": slot},
+                               None))
+    return read_trc(out)
+
+
+# BODY_25B's keypoints that BODY_25 has no name for, about the neck (m): below the chin, the top of the head
+BODY25B_OWN = {"UpperNeck": (0.0, -0.03, 0.08), "HeadTop": (0.0, -0.02, 0.30)}
+
+
+def test_a_body25b_keypoint_without_a_body25_name_reaches_the_trc(tmp_path):
+    """BODY_25B JSON of a standing near player seen by 4 cameras (0.3 px noise) through pose2d, pose3d and
+    rule pose_trc: the keypoints BODY_25 has no name for (UpperNeck, HeadTop) are triangulated from every
+    view and written as markers named by the model, in its order, where the player's are (within 1 cm)."""
+    body = STANDING + [0.2, 2.3, 0.0]
+    neck = body[BODY25.index("Neck")]
+    names = pose_keypoints("BODY_25B")
+    truth = np.array([body[BODY25.index(n)] if n in BODY25 else neck + BODY25B_OWN[n] for n in names])
+    time_ns = 10_000_000 * np.arange(20, dtype=np.int64)
+    cameras, rng = make_rig(np.random.default_rng(1), 4, 480, 360), np.random.default_rng(2)
+    tables = []
+    for camera in cameras:
+        (tmp_path / camera.name).mkdir()
+        for frame in range(len(time_ns)):
+            px = camera.project(truth) + rng.normal(0, 0.3, (len(names), 2))
+            person = np.column_stack([px, np.full(len(names), 0.9)])
+            write_model_json(tmp_path / camera.name / f"{camera.name}.{frame:05d}.json", [person])
+        tables.append(pose2d_table(tmp_path / camera.name, time_ns, model="BODY_25B"))
+    pose, _ = pose3d_table(cameras, tables, default_players_scene(), 0.02, 0.005, 4.0, False)
+    write_table(pose, tmp_path / "pose3d.parquet", POSE3D, Provenance.of("triangulation"))
+    near = pose[pose["player"] == "near"]
+    _, markers, _, _, points = _trc_of(tmp_path / "pose3d.parquet", "near", tmp_path / "near.trc")
+    assert markers == list(names) and markers[17:19] == list(BODY25B_OWN)
+    for name in BODY25B_OWN:
+        assert (near[f"{name}_views"] == 4).all() and (near[f"{name}_reproj_px"] < 1.5).all()
+        k = names.index(name)
+        assert np.linalg.norm(points[:, k] - opensim_axes(truth[k]), axis=1).max() < 0.01, name
+
+
 def test_a_players_trc_is_the_pose3d_table(tiny_run, tmp_path):
     """Rule pose_trc on the tiny run's pose3d: one marker per BODY_25 keypoint (the twin's model), named
     by it, in metres on the camera clock; OpenSim's y-up axes are the table frame's (y, z, x)."""
     source = tiny_run / "interim/pose3d/s00.parquet"
-    out = tmp_path / "near.trc"
-    pose_trc.main(StageContext("pose_trc", Named(pose3d=str(source)), Named(trc=str(out)), {"slot": "near"},
-                               None))
-    header, markers, _, times, points = read_trc(out)
+    header, markers, _, times, points = _trc_of(source, "near", tmp_path / "near.trc")
     pose = pd.read_parquet(source)
     near = pose[pose["player"] == "near"].sort_values("time_ns")
     assert markers == list(BODY25) and header["Units"] == "m" and float(header["DataRate"]) == 100.0

@@ -13,10 +13,12 @@ from pingpong.perception.schemas import POSE2D, POSE2D_VALUES, POSE3D, POSE3D_VA
 from pingpong.twin.rig import make_rig
 
 N_FRAMES = 20
-# a standing player's joints about the mid-hip (m): the 8 model joints, then two more of BODY_25
-JOINTS = (*MODEL_JOINTS, "Nose", "RKnee")
+# a standing player's joints about the mid-hip (m): the 8 model joints, two more of BODY_25 and BODY_25B's
+# HeadTop, which BODY_25 has no name for
+JOINTS = (*MODEL_JOINTS, "Nose", "RKnee", "HeadTop")
 BODY = np.array([[-0.2, 0, 0.5], [-0.3, 0, 0.25], [-0.3, 0.1, 0.0], [0.2, 0, 0.5], [0.3, 0, 0.25],
-                 [0.3, 0.1, 0.0], [-0.1, 0, 0.0], [0.1, 0, 0.0], [0.0, 0.05, 0.75], [-0.1, 0.05, -0.45]])
+                 [0.3, 0.1, 0.0], [-0.1, 0, 0.0], [0.1, 0, 0.0], [0.0, 0.05, 0.75], [-0.1, 0.05, -0.45],
+                 [0.0, 0.03, 0.85]])
 NEAR = np.array([0.2, 2.3, -0.1])
 BAD_CAMERA = 3
 

@@ -4,9 +4,10 @@ One file per frame, {"version":1.3,"people":[{"person_id":[-1],"pose_keypoints_2
 "face_keypoints_2d":[],"hand_left_keypoints_2d":[],"hand_right_keypoints_2d":[],"pose_keypoints_3d":[],
 "face_keypoints_3d":[],"hand_left_keypoints_3d":[],"hand_right_keypoints_3d":[]}]}, compact, pixels of
 the source image; an undetected joint is 0,0,0. K is the model's keypoint count, which the file does not
-name: the caller declares the model (KEYPOINT_MODELS) and the reader maps its joints by name into the
-BODY_25 layout (`to_body25`). Files are named by one of LAYOUTS (or a caller's regex); the writer writes
-BODY_25 in OpenPose's own layout, as the digital twin needs.
+name: the caller declares the model (KEYPOINT_MODELS) and the reader maps its joints by name into its
+layout (`reader_layout`: BODY_25's 25 joints, then the model's keypoints BODY_25 lacks). Files are named
+by one of LAYOUTS (or a caller's regex); the writer writes BODY_25 in OpenPose's own layout, as the
+digital twin needs.
 
 Read as real tools write it: a person without keypoints ({}) is no person; values are checked where they
 enter (finite numbers, confidences in [0, 1], K triples); a folder is checked against the video's frame
@@ -98,14 +99,27 @@ def model_keypoint_names(model: str) -> tuple[str, ...]:
     return KEYPOINT_MODELS[model]
 
 
-def to_body25(keypoints: np.ndarray, model: str) -> np.ndarray:
-    """(..., 25, 3) BODY_25 layout of keypoints (..., K, 3) in the model's order, mapped by joint name;
+def pose_keypoints(model: str) -> tuple[str, ...]:
+    """The declared model's keypoints in its order, each named as BODY_25 names the same joint (BODY25_NAME:
+    Halpe's Hip is MidHip) or, where BODY_25 has none, by the model's own name (BODY_25B's UpperNeck and
+    HeadTop, Halpe's Head): the joints the pose tables carry, so that a joint's name means one thing in
+    every model."""
+    return tuple(BODY25_NAME.get(name, name) for name in model_keypoint_names(model))
+
+
+def reader_layout(model: str) -> tuple[str, ...]:
+    """The joints the reader gives for the model, by name: BODY_25's 25 (pose2d's tracking works on those),
+    then the model's keypoints BODY_25 lacks, in the model's order."""
+    return BODY25 + tuple(name for name in pose_keypoints(model) if name not in BODY25)
+
+
+def to_reader_layout(keypoints: np.ndarray, model: str) -> np.ndarray:
+    """(..., L, 3) keypoints (..., K, 3) in the model's order, mapped by joint name into reader_layout(model);
     a BODY_25 joint the model lacks is 0, 0, 0 (absent) unless derived (MIDPOINTS)."""
-    names = [BODY25_NAME.get(name, name) for name in model_keypoint_names(model)]
+    names, layout = pose_keypoints(model), reader_layout(model)
     keypoints = np.asarray(keypoints, float)
-    out = np.zeros((*keypoints.shape[:-2], N_JOINTS, 3))
-    shared = [(BODY25.index(name), k) for k, name in enumerate(names) if name in BODY25]
-    out[..., [j for j, _ in shared], :] = keypoints[..., [k for _, k in shared], :]
+    out = np.zeros((*keypoints.shape[:-2], len(layout), 3))
+    out[..., [layout.index(name) for name in names], :] = keypoints
     for joint, pair in MIDPOINTS.items():
         if joint not in names:
             ends = out[..., [BODY25.index(name) for name in pair], :]  # (..., 2, 3)
@@ -201,8 +215,9 @@ def _read_people(path: str | os.PathLike, model: str) -> tuple[np.ndarray, int]:
 
 
 def read_keypoints_json(path: str | os.PathLike, model: str = "BODY_25") -> np.ndarray:
-    """People (P, 25, 3) in BODY_25 layout of one file of the declared model (`read_model_keypoints`)."""
-    return to_body25(read_model_keypoints(path, model), model)
+    """People (P, L, 3) in the reader's layout (`reader_layout`) of one file of the declared model
+    (`read_model_keypoints`)."""
+    return to_reader_layout(read_model_keypoints(path, model), model)
 
 
 def layout_patterns(pattern: str | re.Pattern | None = None) -> dict[str, re.Pattern]:
@@ -327,7 +342,8 @@ def check_frame_count(folder: str | os.PathLike, entries: list[tuple[int, Path]]
 def read_keypoints_folder(folder: str | os.PathLike, model: str = "BODY_25",
                           pattern: str | re.Pattern | None = None,
                           n_frames: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Frame numbers (F,) and keypoints (F, P_max, 25, 3), BODY_25 layout, of a folder's per-frame files.
+    """Frame numbers (F,) and keypoints (F, P_max, L, 3), the reader's layout (`reader_layout`), of a
+    folder's per-frame files.
 
     Frames in the order of their numbers (`list_frame_files`); with n_frames (the video's frame count)
     they must be 0..n_frames-1 (`check_frame_count`). People are padded with zeros (confidence 0 =
@@ -349,7 +365,7 @@ def read_keypoints_folder(folder: str | os.PathLike, model: str = "BODY_25",
     for i, people in enumerate(per_frame):
         raw[i, :len(people)] = people
     check_declared_model(raw, model, [path for _, path in entries])
-    return frames, to_body25(raw, model)
+    return frames, to_reader_layout(raw, model)
 
 
 # The declared model's plausibility. BODY_25 and BODY_25B files both hold 75 values a person, so only the
@@ -376,15 +392,14 @@ MODEL_RATIO = 1.25
 
 def _bones(model: str, other: str) -> list[tuple[int, int]]:
     """BODY_25 indices of the SKELETON bones whose ends both models name."""
-    named = ({BODY25_NAME.get(n, n) for n in KEYPOINT_MODELS[model]}
-             & {BODY25_NAME.get(n, n) for n in KEYPOINT_MODELS[other]})
+    named = set(pose_keypoints(model)) & set(pose_keypoints(other))
     return [(BODY25.index(a), BODY25.index(b)) for a, b in SKELETON if a in named and b in named]
 
 
 def skeleton_lengths(raw: np.ndarray, model: str, bones: list[tuple[int, int]]) -> np.ndarray:
     """(...) mean length of a person's detected bones (BODY_25 index pairs) when raw (..., K, 3) is read
     as model, over the diagonal of the box around its detected points; NaN under MIN_BONES bones."""
-    body = to_body25(raw, model)
+    body = to_reader_layout(raw, model)
     ends = body[..., [a for a, _ in bones], :], body[..., [b for _, b in bones], :]
     seen = (ends[0][..., 2] > 0) & (ends[1][..., 2] > 0)
     length = np.where(seen, np.linalg.norm(ends[0][..., :2] - ends[1][..., :2], axis=-1), 0.0)

@@ -25,7 +25,7 @@ import pandas as pd
 from scipy.optimize import linear_sum_assignment
 
 from pingpong.frames import BODY25, MODEL_JOINTS
-from pingpong.io.openpose_json import BODY25_NAME, model_keypoint_names, read_keypoints_folder
+from pingpong.io.openpose_json import N_JOINTS, pose_keypoints, read_keypoints_folder, reader_layout
 from pingpong.perception.schemas import POSE2D_VALUES, joint_columns
 
 MIN_CONFIDENCE = 0.3  # config perception.pose_min_confidence: joints below are gaps
@@ -135,14 +135,18 @@ def tracklet_lanes(ids: np.ndarray) -> np.ndarray:
 
 
 def tracked_people(keypoints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Every detected person of keypoints (F, P, 25, 3) followed over time, limb swaps undone.
+    """Every detected person of keypoints (F, P, J, 3) in the reader's layout (`openpose_json.reader_layout`:
+    BODY_25's 25 joints first) followed over time, limb swaps undone. People are followed on BODY_25's
+    joints; the model's others (BODY_25B's UpperNeck and HeadTop, Halpe's Head: on the midline, which no
+    limb swap moves) go with their person.
 
-    Returns people (F, L, 25, 3) and their tracklet ids (F, L), -1 (and zeros) where a lane is empty."""
+    Returns people (F, L, J, 3) and their tracklet ids (F, L), -1 (and zeros) where a lane is empty."""
     keypoints = np.asarray(keypoints, float)
-    ids = link_tracklets(keypoints, torso_pixels(keypoints))
+    body = keypoints[..., :N_JOINTS, :]
+    ids = link_tracklets(body, torso_pixels(body))
     lanes = tracklet_lanes(ids)
     n_lanes = lanes.max(initial=-1) + 1  # 0 where nobody is ever seen
-    people = np.zeros((len(keypoints), n_lanes, 25, 3))
+    people = np.zeros((len(keypoints), n_lanes, *keypoints.shape[2:]))
     track = np.full((len(keypoints), n_lanes), -1)
     f, p = np.nonzero(lanes >= 0)
     people[f, lanes[f, p]] = keypoints[f, p]
@@ -151,7 +155,8 @@ def tracked_people(keypoints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def fix_limb_swaps(players: np.ndarray) -> np.ndarray:
-    """A copy of players (F, S, 25, 3) with single-frame left/right limb swaps undone (see module doc)."""
+    """A copy of players (F, S, J, 3) (BODY_25's joints first) with single-frame left/right limb swaps
+    undone (see module doc)."""
     players = np.asarray(players, float)
     out = players.copy()
     xy = np.where(players[..., 2:] > 0, players[..., :2], np.nan)
@@ -177,20 +182,12 @@ def fix_limb_swaps(players: np.ndarray) -> np.ndarray:
     return out
 
 
-def model_keypoints(model: str) -> tuple[str, ...]:
-    """The declared model's keypoints that BODY_25 names, in the model's order (BODY_25 names): the
-    joints the pose tables carry. BODY_25B's UpperNeck and HeadTop and Halpe's Head have no BODY_25 place
-    in the reader's layout (`openpose_json.to_body25`) and are not carried."""
-    names = (BODY25_NAME.get(name, name) for name in model_keypoint_names(model))
-    return tuple(name for name in names if name in BODY25)
-
-
-def model_joints(players: np.ndarray, min_confidence: float = MIN_CONFIDENCE,
-                 joints=MODEL_JOINTS) -> np.ndarray:
-    """(F, S, J, 3) [u px, v px, confidence] of the joints (BODY_25 names; the 8 model joints by default)
-    of players (F, S, 25, 3); u, v are NaN (a gap) where the confidence is below min_confidence or the
-    joint was not detected (confidence 0 is kept)."""
-    joints = np.asarray(players, float)[:, :, [BODY25.index(name) for name in joints]].copy()
+def model_joints(players: np.ndarray, min_confidence: float = MIN_CONFIDENCE, joints=MODEL_JOINTS,
+                 layout=BODY25) -> np.ndarray:
+    """(F, S, J, 3) [u px, v px, confidence] of the joints (names in layout; the 8 model joints by default)
+    of players (F, S, len(layout), 3); u, v are NaN (a gap) where the confidence is below min_confidence or
+    the joint was not detected (confidence 0 is kept)."""
+    joints = np.asarray(players, float)[:, :, [layout.index(name) for name in joints]].copy()
     confidence = joints[..., 2]
     joints[(confidence < min_confidence) | (confidence <= 0), :2] = np.nan
     return joints
@@ -202,22 +199,23 @@ def pose2d_table(folder: str | os.PathLike, time_ns: np.ndarray, min_confidence:
 
     time_ns (F,): the camera's frame times; the folder must hold frames 0..F-1, files named by
     pattern (`openpose_json.layout_patterns`: any known layout by default) holding keypoints of the
-    declared model (`openpose_json.KEYPOINT_MODELS`), mapped by name to BODY_25. Columns: time_ns,
-    person (the tracklet id, -1 on the one row of a frame with nobody), and per joint of
-    model_keypoints(model) (the 8 model joints among them): {name}_u, _v (distorted pixels) and _conf
-    (OpenPose's confidence, 0 where not detected); gaps have u, v NaN. Rows are ordered by time, then person.
+    declared model (`openpose_json.KEYPOINT_MODELS`). Columns: time_ns, person (the tracklet id, -1 on
+    the one row of a frame with nobody), and per keypoint of the model in its order, named as
+    `openpose_json.pose_keypoints` names it (the 8 model joints among them): {name}_u, _v (distorted
+    pixels) and _conf (OpenPose's confidence, 0 where not detected); gaps have u, v NaN. Rows are ordered
+    by time, then person.
     """
     time_ns = np.asarray(time_ns, np.int64)
     # one file per frame time: extra or missing files are named there
     _, keypoints = read_keypoints_folder(folder, model, pattern, n_frames=len(time_ns))
     people, track = tracked_people(keypoints)
-    names = model_keypoints(model)
-    joints = model_joints(people, min_confidence, names)  # (F, L, J, 3)
+    names, layout = pose_keypoints(model), reader_layout(model)
+    joints = model_joints(people, min_confidence, names, layout)  # (F, L, J, 3)
     f, lane = np.nonzero(track >= 0)
     empty = np.flatnonzero((track < 0).all(axis=1))  # a row of gaps keeps such a frame on the clock
     frame = np.concatenate([f, empty])
     person = np.concatenate([track[f, lane], np.full(len(empty), -1)])
-    gaps = model_joints(np.zeros((len(empty), 1, 25, 3)), joints=names)[:, 0]
+    gaps = model_joints(np.zeros((len(empty), 1, len(layout), 3)), joints=names, layout=layout)[:, 0]
     rows = np.concatenate([joints[f, lane], gaps]).reshape(len(frame), -1)
     order = np.lexsort((person, frame))
     table = pd.DataFrame(rows[order], columns=list(joint_columns(names, POSE2D_VALUES)))

@@ -5,7 +5,8 @@ from pingpong.frames import MODEL_JOINTS, ROT_COLUMNS
 
 
 def joint_columns(joints, values) -> tuple[str, ...]:
-    """Columns named by joint (a BODY_25 name) and value, joint-major: RShoulder_x, RShoulder_y, ..."""
+    """Columns named by joint (as `openpose_json.pose_keypoints` names it) and value, joint-major:
+    RShoulder_x, RShoulder_y, ..."""
     return tuple(f"{joint}_{value}" for joint in joints for value in values)
 
 
@@ -21,12 +22,12 @@ PADDLE = Schema("paddle", 1, ("time_ns", "player", "px", "py", "pz", *ROT_COLUMN
 POSE2D_VALUES = ("u", "v", "conf")  # distorted pixels, OpenPose's confidence
 MODEL_JOINT_COLUMNS = joint_columns(MODEL_JOINTS, POSE2D_VALUES)
 # one row per (frame, person) of a camera: person is its tracklet id, -1 on a frame with nobody; every
-# keypoint of the declared model that BODY_25 names, the 8 model joints among them
-POSE2D = Schema("pose2d", 3, ("time_ns", "person", *MODEL_JOINT_COLUMNS))
+# keypoint of the declared model (BODY_25's name where BODY_25 has the joint), the 8 model joints among them
+POSE2D = Schema("pose2d", 4, ("time_ns", "person", *MODEL_JOINT_COLUMNS))
 BALL3D = Schema("ball3d", 1, ("time_ns", "x", "y", "z", "n_views", "reproj_rms_px"))
 # per joint: position (m, the calibration's world), the views used, their RMS reprojection error (px)
 POSE3D_VALUES = ("x", "y", "z", "views", "reproj_px")
 POSE3D_JOINT_COLUMNS = joint_columns(MODEL_JOINTS, POSE3D_VALUES)
-POSE3D = Schema("pose3d", 2, ("time_ns", "player", *POSE3D_JOINT_COLUMNS))
+POSE3D = Schema("pose3d", 3, ("time_ns", "player", *POSE3D_JOINT_COLUMNS))
 SYNC = Schema("camera_sync", 1, ("camera", "frames", "rate_hz", "first_ns", "last_ns", "dropped_frames",
                                  "non_increasing"))  # interim/sync/{session}.parquet, one row per camera
