@@ -56,22 +56,33 @@ def under_raw(path: str | os.PathLike, root: Path = Path(".")) -> bool:
     return rel == RAW or rel.startswith(RAW + "/")
 
 
-def _stat_key(path: Path) -> list[int]:
-    st = path.lstat()
+def _stat_key(st: os.stat_result) -> list[int]:
     return [st.st_size, st.st_mtime_ns, st.st_ctime_ns, st.st_ino]
 
 
-def _files_in(path: Path) -> Iterator[Path]:
-    """A file, or every file inside a folder (a symbolic link counts as a file and is never followed)."""
-    if path.is_file() or path.is_symlink():
-        yield path
+def _files_in(path: str | os.PathLike, rel: str) -> Iterator[tuple[str, str, os.stat_result]]:
+    """A file, or every file inside a folder (a symbolic link counts as a file and is never followed), by
+    name: (path, its name under `rel`, its lstat). Strings and scandir, not pathlib: 200,000 files
+    (the default run's raw/) take 1 s so, where Path objects took 11 s."""
+    path = os.fspath(path)
+    if not os.path.isdir(path) or os.path.islink(path):
+        if os.path.lexists(path):
+            yield path, rel, os.lstat(path)
         return
-    for folder, dirs, files in os.walk(path):
-        links = [d for d in dirs if os.path.islink(os.path.join(folder, d))]
-        dirs[:] = sorted(d for d in dirs if d not in links and not _TEMPORARY.fullmatch(d))
-        for name in sorted(files + links):
-            if name not in NOT_RECORDINGS and not _TEMPORARY.fullmatch(name):
-                yield Path(folder, name)
+    stack = [(path, rel)]  # depth first, by name: a stack, not recursion (generators nest per level)
+    while stack:
+        folder, folder_rel = stack.pop()
+        with os.scandir(folder) as entries:
+            listed = sorted(entries, key=lambda e: e.name)
+        subfolders = []
+        for entry in listed:
+            if entry.name in NOT_RECORDINGS or _TEMPORARY.fullmatch(entry.name):
+                continue
+            if entry.is_dir(follow_symlinks=False):
+                subfolders.append((entry.path, f"{folder_rel}/{entry.name}"))
+            else:
+                yield entry.path, f"{folder_rel}/{entry.name}", entry.stat(follow_symlinks=False)
+        stack.extend(reversed(subfolders))
 
 
 def _job_stem(stage: str, outputs: list[str]) -> str:
@@ -94,8 +105,7 @@ def recording(stage: str, outputs: list[str], root: Path = Path(".")) -> Iterato
     def before_rename(tmp: Path, final: Path) -> None:
         if not under_raw(final, root):
             return
-        lines = [f"{file_sha256(f)}  {_relative(final / f.relative_to(tmp), root)}\n"
-                 for f in _files_in(tmp)]
+        lines = [f"{file_sha256(f)}  {rel}\n" for f, rel, _ in _files_in(tmp, _relative(final, root))]
         with open(stem.with_suffix(".pending"), "a") as out:
             out.writelines(lines)
             out.flush()
@@ -107,8 +117,8 @@ def recording(stage: str, outputs: list[str], root: Path = Path(".")) -> Iterato
     finally:
         atomic.BEFORE_RENAME.remove(before_rename)
     pending = _hash_lines(stem.with_suffix(".pending"))
-    files = {_relative(f, root): f for out in mine for f in _files_in(root / out)}
-    lines = [f"{pending.get(rel) or file_sha256(f)}  {rel}\n" for rel, f in files.items()]
+    files = [(f, rel) for out in mine for f, rel, _ in _files_in(root / out, out)]
+    lines = [f"{pending.get(rel) or file_sha256(f)}  {rel}\n" for f, rel in files]
     atomic.write_text_atomic(stem.with_suffix(".sha256"), "".join(lines))
     stem.with_suffix(".pending").unlink(missing_ok=True)
 
@@ -137,16 +147,15 @@ def _read_cache(root: Path) -> dict[str, list]:
         return {}
 
 
-def _classify(root: Path, cache_to: Path | None) -> tuple[list[tuple[Path, str]], list[str]]:
+def _classify(root: Path, cache_to: Path | None) -> tuple[list[tuple[str, str]], list[str]]:
     """The files under raw/ (the records excepted) that the records list with their present content, and
     the others; the stat cache refreshed for what it had to read (cache_to: where; None, not written)."""
     hashes, cache = owned(root), _read_cache(root)
     fresh, mine, foreign = {}, [], []
-    for f in _files_in(root / RAW):
-        rel = _relative(f, root.resolve())
+    for f, rel, st in _files_in(root / RAW, RAW):
         if rel.startswith(OWNED + "/"):
             continue
-        stat = _stat_key(f)
+        stat = _stat_key(st)
         cached = cache.get(rel)
         sha = cached[0] if cached and cached[1:] == stat else file_sha256(f)
         if sha in hashes.get(rel, ()):
@@ -186,7 +195,7 @@ def clean(root: Path = Path(".")) -> tuple[list[str], list[str]]:
     root = Path(root)
     mine, kept = _classify(root, None)
     for f, _rel in mine:
-        f.unlink()
+        os.unlink(f)
     for record in sorted((root / OWNED).iterdir()) if (root / OWNED).is_dir() else []:
         record.unlink()
     removed = [rel for _f, rel in mine]
