@@ -18,6 +18,8 @@ import pyarrow.parquet as pq
 import pytest
 from workflow_util import copy_checkout, snakemake, write_config
 
+from pingpong.common.raw_ownership import OWNED
+
 pytestmark = pytest.mark.slow
 
 TINY = {"twin": {"n_sessions": 1, "rallies_per_session": 2, "n_cameras": 2, "width": 160, "height": 120}}
@@ -107,9 +109,12 @@ def test_slurm_run_matches_the_local_run(cluster, tmp_path):
 
     # identical artifacts: the same tables, the same JSON, and in fact the same bytes, provenance
     # included (it holds input content hashes and relative paths, nothing of the host or folder)
+    # and the twin's ownership records (pingpong.common.raw_ownership), one per job, alike
     a, b = _artifacts(local), _artifacts(slurm)
-    assert set(a) == set(b) == EXPECTED
-    for name in sorted(EXPECTED):
+    records = {name for name in a if name.startswith(OWNED + "/")}
+    assert set(a) == set(b) and set(a) - records == EXPECTED
+    assert {Path(name).name.rsplit("-", 1)[0] for name in records} == RULES
+    for name in sorted(a):
         if name.endswith(".parquet"):
             ta, tb = pq.read_table(a[name]), pq.read_table(b[name])
             assert ta.equals(tb), name
