@@ -22,7 +22,10 @@ from pingpong.io.camera_streams import CameraFrame
 from pingpong.perception.ball_colour import main as ball_colour
 from pingpong.perception.detection import Scene, ball_detector, detect_stream, scene_image
 
-FRAMES = Path(__file__).resolve().parents[1] / ".." / "shared" / "realdata" / "white_ball_frames"
+# the project's shared folder beside the checkout, or where these machines mount it (a clean clone for CI
+# may lie elsewhere)
+FRAMES = next((p for p in (Path(__file__).resolve().parents[2] / "shared", Path("/work/shared"))
+               if p.is_dir()), Path("/work/shared")) / "realdata" / "white_ball_frames"
 WHITE = ball_detector({"colour": "white"})
 
 
