@@ -20,7 +20,9 @@ Snakemake touches a job's outputs after it ends.
 
 Not counted as anyone's file: `.gitkeep` (the repository's), `.snakemake_timestamp` (Snakemake writes it
 into directory outputs) and the atomic writes' temporaries (`.NAME.XXXXXXXX.tmp`, swept by the job that
-left them). Standard library only: `make clean` runs it without the project's environment.
+left them); a lab's file of exactly such a name inside a twin output folder is the one thing the
+check would not stop (no recording tool writes those names). Standard library only: `make clean` runs it
+without the project's environment.
 """
 
 import contextlib
