@@ -18,6 +18,10 @@ def table_joints(columns, value: str) -> tuple[str, ...]:
 
 CAMERAS = Schema("cameras", 1)  # interim/calibration/cameras.json
 DETECTIONS = Schema("detections", 1, ("time_ns", "u", "v", "area_px", "detected", "decode_ok"))
+# every ball candidate the detector weighed, one row each (interim/ball_candidates/{session}/{cam}.parquet):
+# pixel centre, blob area, the detector's score (higher: more ball-like), whether it is the frame's detection,
+# and why (kept, or the test that refused it: e.g. static, slow, off_track, colour, size, lone)
+BALL_CANDIDATES = Schema("ball_candidates", 1, ("time_ns", "u", "v", "area_px", "score", "kept", "reason"))
 PADDLE = Schema("paddle", 1, ("time_ns", "player", "px", "py", "pz", *ROT_COLUMNS, "valid"))
 POSE2D_VALUES = ("u", "v", "conf")  # distorted pixels, OpenPose's confidence
 MODEL_JOINT_COLUMNS = joint_columns(MODEL_JOINTS, POSE2D_VALUES)
