@@ -1,0 +1,220 @@
+"""Ball-detection QA: one camera's detector decisions as a contact sheet a person checks in a minute.
+
+Method. The detector's candidates table (schemas.BALL_CANDIDATES: every blob it weighed, kept or refused
+and why) sorts the frames into kinds of decision: frames with a kept detection; for each refusal reason,
+frames with a candidate refused for it (reasons by how many candidates they refused, the most frequent
+first); frames with candidates but no detection. Tiles go to the kinds in turn, one each per round, so
+every kind present gets a tile before any gets a second (all of them when the kinds are at most the
+tiles), and within a kind the frames are taken in a spread order (the middle, then the quarters, then
+the eighths, ...), so that any number of them covers the stream evenly. A frame is shown once, with all
+of its candidates. Each tile is a square crop of the frame around the candidate that put it there, of
+CROP_DIAMETERS ball diameters (at least 1/MIN_CROP_SHARE of the image's width), scaled to TILE_PX so a
+4 px ball of a 480x360 stream shows 13 px wide: kept candidates circled green, refused ones red with
+their reason, the tile titled with the frame's time on the stream (s from its first frame) and its kind.
+A summary band on top counts the stream's frames, the frames with candidates, the detections, the frames
+with candidates but none kept, and the refusals by reason.
+
+Inputs: the candidates table, the camera stream (any reader of io.camera_streams) and its frame times.
+Cost: only the chosen frames are decoded (at most TILE_ROWS x TILE_COLUMNS = 24); the stream is still
+read up to the last of them (a compressed frame's bytes, not its pixels; a video's frames are decoded by
+PyAV as they pass, which its reader cannot skip).
+
+Failure modes: a frame that does not decode is shown as a grey tile with the decoder's reason; a chosen
+time missing from the stream (a candidates table of another recording) leaves its tile out, with a
+warning; candidates far apart in one frame (a refused box beside the ball) show on the tile of each only
+where they fall inside its crop; more kinds than tiles leave the rarest refusal reasons without a tile
+(the summary band still counts them).
+"""
+
+import logging
+import textwrap
+from collections.abc import Iterator
+
+import cv2
+import numpy as np
+import pandas as pd
+
+log = logging.getLogger(__name__)
+
+TILE_ROWS, TILE_COLUMNS = 4, 6  # 24 tiles: a sheet read in a minute
+TILE_PX = 192  # a tile's side; 6 tiles make a 1152 px wide sheet
+TITLE_PX = 18  # the title bar above each tile
+CROP_DIAMETERS = 12  # a crop's side in ball diameters: the ball and what refused candidates stand beside
+MIN_CROP_SHARE = 8  # a crop at least width / 8 px: 60 px of a 480 px stream (3.2x), 160 of a 1280 (1.2x)
+KEPT_BGR, REFUSED_BGR = (0, 255, 0), (40, 40, 255)
+KEPT, NO_DETECTION = "kept", "no detection"
+FONT = cv2.FONT_HERSHEY_SIMPLEX
+
+
+def decision_kinds(candidates: pd.DataFrame) -> list[tuple[str, np.ndarray]]:
+    """(kind, its frames' times ascending) of every kind of decision in the table, in the order tiles go
+    to them: kept; each refusal reason, the most frequent (in candidates) first; no detection."""
+    kept = candidates["kept"].to_numpy(bool)
+    refused = candidates[~kept]
+    kinds = [(KEPT, np.unique(candidates.loc[kept, "time_ns"].to_numpy(np.int64)))]
+    counts = refused["reason"].value_counts()
+    for reason in sorted(counts.index, key=lambda r: (-counts[r], r)):
+        times = refused.loc[refused["reason"] == reason, "time_ns"].to_numpy(np.int64)
+        kinds.append((reason, np.unique(times)))
+    with_candidates = np.unique(candidates["time_ns"].to_numpy(np.int64))
+    kinds.append((NO_DETECTION, np.setdiff1d(with_candidates, kinds[0][1], assume_unique=True)))
+    return [(kind, times) for kind, times in kinds if len(times)]
+
+
+def spread_order(n: int) -> Iterator[int]:
+    """Every index of range(n) once, in an order whose every prefix is spread over the range: the middle,
+    then the quarters, the eighths, ... (lazy: a few tiles' picks cost a few steps, not n)."""
+    seen, parts = set(), 1
+    while len(seen) < n:
+        for j in range(parts):
+            index = min(int((j + 0.5) * n / parts), n - 1)
+            if index not in seen:
+                seen.add(index)
+                yield index
+        parts *= 2
+
+
+def _spread(times: np.ndarray) -> Iterator[int]:
+    return (int(times[i]) for i in spread_order(len(times)))
+
+
+def choose_tiles(candidates: pd.DataFrame, n_tiles: int) -> pd.DataFrame:
+    """The frames to show (time_ns, kind), at most n_tiles, ordered by kind (decision_kinds' order) and
+    time: kinds take a frame each in turn, each its next frame in spread order not already shown."""
+    kinds = decision_kinds(candidates)
+    picks = {kind: _spread(times) for kind, times in kinds}
+    chosen: dict[int, str] = {}
+    while picks and len(chosen) < n_tiles:
+        for kind in list(picks):
+            pick = next((t for t in picks[kind] if t not in chosen), None)
+            if pick is None:
+                del picks[kind]
+            elif len(chosen) < n_tiles:
+                chosen[pick] = kind
+    order = {kind: k for k, (kind, _) in enumerate(kinds)}
+    tiles = pd.DataFrame({"time_ns": np.array(list(chosen), np.int64), "kind": list(chosen.values())})
+    tiles["rank"] = tiles["kind"].map(order)
+    return tiles.sort_values(["rank", "time_ns"]).drop(columns="rank").reset_index(drop=True)
+
+
+def _diameter_px(area_px: float) -> float:
+    return 2.0 * np.sqrt(max(float(area_px), 1.0) / np.pi)
+
+
+def crop_square(u: float, v: float, area_px: float, width: int, height: int) -> tuple[int, int, int]:
+    """(x0, y0, side) of the square crop around a candidate at (u, v) px of a width x height image: side
+    CROP_DIAMETERS of its diameters, at least width / MIN_CROP_SHARE, at most the image; shifted inside."""
+    side = int(round(min(max(CROP_DIAMETERS * _diameter_px(area_px), width / MIN_CROP_SHARE), width, height)))
+    x0 = int(np.clip(round(u - side / 2), 0, width - side))
+    y0 = int(np.clip(round(v - side / 2), 0, height - side))
+    return x0, y0, side
+
+
+def tile_position(uv: np.ndarray, x0: int, y0: int, side: int) -> np.ndarray:
+    """Pixel (u, v) of the image at its place on the tile of the crop (x0, y0, side): pixel centres map
+    as cv2.resize's do (centre of pixel i at i + 0.5 of the crop's extent)."""
+    scale = TILE_PX / side
+    return (np.asarray(uv, float) - (x0, y0) + 0.5) * scale - 0.5
+
+
+def _text(image: np.ndarray, text: str, origin, colour, size: float = 0.4) -> None:
+    """Text with a dark outline, readable on any background."""
+    cv2.putText(image, text, origin, FONT, size, (0, 0, 0), 3, cv2.LINE_AA)
+    cv2.putText(image, text, origin, FONT, size, colour, 1, cv2.LINE_AA)
+
+
+def draw_tile(image: np.ndarray | None, rows: pd.DataFrame, subject: pd.Series, title: str,
+              reason: str = "") -> np.ndarray:
+    """A titled tile (TITLE_PX + TILE_PX) x TILE_PX: the crop of the BGR image around `subject` (a row of
+    `rows`, the frame's candidates) scaled up, each candidate inside it circled (kept green, refused red
+    with its reason); an image that did not decode (None) gives a grey tile with `reason`."""
+    tile = np.zeros((TITLE_PX + TILE_PX, TILE_PX, 3), np.uint8)
+    _text(tile, title, (4, TITLE_PX - 5), (255, 255, 255))
+    body = tile[TITLE_PX:]
+    if image is None:
+        body[:] = 64
+        for k, line in enumerate(textwrap.wrap(f"no image: {reason}", 30)[:6]):
+            _text(body, line, (4, 20 + 16 * k), (255, 255, 255))
+        return tile
+    height, width = image.shape[:2]
+    x0, y0, side = crop_square(subject["u"], subject["v"], subject["area_px"], width, height)
+    crop = image[y0:y0 + side, x0:x0 + side]
+    body[:] = cv2.resize(crop, (TILE_PX, TILE_PX), interpolation=cv2.INTER_LINEAR)
+    scale = TILE_PX / side
+    for row in rows.itertuples(index=False):
+        centre = tile_position((row.u, row.v), x0, y0, side)
+        if not (-TILE_PX / 2 < centre).all() or not (centre < 1.5 * TILE_PX).all():
+            continue  # far outside the crop: nothing of it would show
+        radius = max(6, int(round(_diameter_px(row.area_px) / 2 * scale)) + 4)
+        point = tuple(int(round(c)) for c in centre)
+        colour = KEPT_BGR if row.kept else REFUSED_BGR
+        cv2.circle(body, point, radius, colour, 2, cv2.LINE_AA)
+        if not row.kept:
+            _text(body, str(row.reason), (point[0] + radius + 2, point[1] + 4), colour)
+    return tile
+
+
+def summary_lines(candidates: pd.DataFrame, n_frames: int, label: str, width_px: int) -> list[str]:
+    """The sheet's summary: frames, frames with candidates, detections, frames with candidates but none
+    kept, refusals by reason (most frequent first), wrapped to width_px."""
+    kept = candidates["kept"].to_numpy(bool)
+    with_candidates = candidates["time_ns"].nunique()
+    detections = candidates.loc[kept, "time_ns"].nunique()
+    refusals = candidates.loc[~kept, "reason"].value_counts()
+    refused = ", ".join(f"{reason} {count:,}" for reason, count in refusals.items()) or "none"
+    text = (f"{label}: {n_frames:,} frames, {with_candidates:,} with candidates, {detections:,} with a "
+            f"detection (green), {with_candidates - detections:,} with candidates but none kept; "
+            f"{(~kept).sum():,} candidates refused (red, with the reason): {refused}")
+    char_px = cv2.getTextSize(text, FONT, 0.5, 1)[0][0] / len(text)  # the text's mean, not the widest
+    return textwrap.wrap(text, max(20, int(width_px / char_px) - 2))
+
+
+def contact_sheet(tiles: list[np.ndarray], summary: list[str]) -> np.ndarray:
+    """The tiles in rows of TILE_COLUMNS under the summary band (a band alone where there are none)."""
+    band = np.zeros((10 + 20 * len(summary), TILE_COLUMNS * TILE_PX, 3), np.uint8)
+    for k, line in enumerate(summary):
+        cv2.putText(band, line, (6, 22 + 20 * k), FONT, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
+    rows = []
+    for start in range(0, len(tiles), TILE_COLUMNS):
+        row = tiles[start:start + TILE_COLUMNS]
+        row += [np.zeros_like(row[0])] * (TILE_COLUMNS - len(row))
+        rows.append(np.hstack(row))
+    return np.vstack([band, *rows])
+
+
+def _subject(rows: pd.DataFrame, kind: str) -> pd.Series:
+    """The candidate that put the frame on the sheet: the kept one, the best scored of the reason's, or
+    (no detection) the best scored of all."""
+    if kind == KEPT:
+        mine = rows[rows["kept"]]
+    elif kind == NO_DETECTION:
+        mine = rows
+    else:
+        mine = rows[~rows["kept"] & (rows["reason"] == kind)]
+    return mine.iloc[int(np.argmax(np.nan_to_num(mine["score"].to_numpy(float), nan=-np.inf)))]
+
+
+def ball_qa_sheet(frames, frame_times: np.ndarray, candidates: pd.DataFrame, label: str) -> np.ndarray:
+    """The QA contact sheet of one camera: its stream (Frame iterator, time order), the stream's frame
+    times (ns) and its candidates table. Decodes only the chosen frames and stops after the last."""
+    chosen = choose_tiles(candidates, TILE_ROWS * TILE_COLUMNS)
+    wanted = dict(zip(chosen["time_ns"].tolist(), chosen["kind"], strict=True))
+    images: dict[int, tuple[np.ndarray | None, str]] = {}
+    for frame in frames:
+        if frame.time_ns in wanted:
+            images[frame.time_ns] = frame.decode()
+            if len(images) == len(wanted):
+                break
+    missing = sorted(set(wanted) - set(images))
+    if missing:
+        log.warning("%s: %d chosen frames are not in the stream (first at %d ns); left out of the sheet",
+                    label, len(missing), missing[0])
+    by_time = candidates.groupby("time_ns")
+    tiles = []
+    for time_ns, kind in wanted.items():
+        if time_ns not in images:
+            continue
+        rows, (image, reason) = by_time.get_group(time_ns), images[time_ns]
+        title = f"{(time_ns - frame_times[0]) / 1e9:.2f} s {kind}"
+        tiles.append(draw_tile(image, rows, _subject(rows, kind), title, reason))
+    return contact_sheet(tiles, summary_lines(candidates, len(frame_times), label, TILE_COLUMNS * TILE_PX))
