@@ -219,6 +219,36 @@ rule report_overlay:
         STAGE_SCRIPT
 
 
+rule report_ball_qa:
+    input:
+        stream=lambda wc: camera_file(wc.session, wc.cam),
+        timestamps=lambda wc: timestamp_files(wc.session, [wc.cam]),
+        candidates="interim/ball_candidates/{session}/{cam}.parquet",
+    output:
+        figure=report(
+            "reports/figures/ball_qa_{session}_{cam}.jpg",
+            caption="../report/ball_qa.rst",
+            category="perception",
+        ),
+    params:
+        session="{session}",
+        cam="{cam}",
+        reading=lambda wc: camera_reading(wc.session, wc.cam),
+        strict=PERCEPTION["strict_mcap"],
+        code=code("report_ball_qa"),
+    log:
+        "logs/report_ball_qa/{session}_{cam}.log",
+    conda:
+        CONDA_ENV
+    script:
+        STAGE_SCRIPT
+
+
+def ball_qa_figures():
+    """The ball-detection QA sheets (reports.ball_qa), one per session and camera."""
+    return [f"reports/figures/ball_qa_{s}_{c}.jpg" for s in sessions() for c in session_cameras(s)]
+
+
 rule report_perception:
     input:
         cameras="interim/calibration/cameras.json",
