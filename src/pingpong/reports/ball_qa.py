@@ -17,13 +17,19 @@ with candidates but none kept, and the refusals by reason.
 Inputs: the candidates table, the camera stream (any reader of io.camera_streams) and its frame times.
 Cost: only the chosen frames are decoded (at most TILE_ROWS x TILE_COLUMNS = 24); the stream is still
 read up to the last of them (a compressed frame's bytes, not its pixels; a video's frames are decoded by
-PyAV as they pass, which its reader cannot skip).
+PyAV as they pass, which its reader cannot skip). Measured on the tiny twin's s00 cam0 (8,442 frames of
+480x360, a 316 MB MCAP, in the page cache; candidates = its colour detections, and those with a refused
+static box in every third frame and every tenth detection refused off_track): the sheet 0.50-0.75 s
+(ball_qa_sheet, the last chosen frame at 0.76-0.92 of the stream), the whole job 1.05-2.05 s wall, 0.9-1.1
+s of CPU with its imports (`python workflow/scripts/stage.py report_ball_qa --input stream=... candidates=...
+--output figure=... --params ...`, four runs). The default run's 16 cameras (4 sessions of the same 12
+rallies): ~15-18 s of CPU, ~1 % of the run's 1,300-1,500 s.
 
 Failure modes: a frame that does not decode is shown as a grey tile with the decoder's reason; a chosen
 time missing from the stream (a candidates table of another recording) leaves its tile out, with a
 warning; candidates far apart in one frame (a refused box beside the ball) show on the tile of each only
-where they fall inside its crop; more kinds than tiles leave the rarest refusal reasons without a tile
-(the summary band still counts them).
+where they fall inside its crop; more kinds than tiles leave the last kinds (no detection, then the rarest
+refusal reasons) without a tile of their own (the summary band still counts them).
 """
 
 import logging
