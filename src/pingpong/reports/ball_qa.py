@@ -23,7 +23,9 @@ static box in every third frame and every tenth detection refused off_track): th
 (ball_qa_sheet, the last chosen frame at 0.76-0.92 of the stream), the whole job 1.05-2.05 s wall, 0.9-1.1
 s of CPU with its imports (`python workflow/scripts/stage.py report_ball_qa --input stream=... candidates=...
 --output figure=... --params ...`, four runs). The default run's 16 cameras (4 sessions of the same 12
-rallies): ~15-18 s of CPU, ~1 % of the run's 1,300-1,500 s.
+rallies): ~15-18 s of CPU, ~1 % of the run's 1,300-1,500 s. A video costs its decode up to the last chosen
+frame: an H.264 1280x720 clip (900 frames of a noise image with a moving disc, PyAV's libx264) passed
+through open_camera_stream at 420-535 frames/s, so ~40 s for 10 minutes at 30 fps.
 
 Failure modes: a frame that does not decode is shown as a grey tile with the decoder's reason; a chosen
 time missing from the stream (a candidates table of another recording) leaves its tile out, with a
