@@ -157,8 +157,11 @@ def draw_tile(image: np.ndarray | None, rows: pd.DataFrame, subject: pd.Series, 
         point = tuple(int(round(c)) for c in centre)
         colour = KEPT_BGR if row.kept else REFUSED_BGR
         cv2.circle(body, point, radius, colour, 2, cv2.LINE_AA)
-        if not row.kept:
-            _text(body, str(row.reason), (point[0] + radius + 2, point[1] + 4), colour)
+        if not row.kept:  # the reason right of the circle, or left where it would run off the tile
+            text_px = cv2.getTextSize(str(row.reason), FONT, 0.4, 1)[0][0]
+            left = point[0] + radius + 2 + text_px > TILE_PX
+            x = point[0] - radius - 2 - text_px if left else point[0] + radius + 2
+            _text(body, str(row.reason), (x, point[1] + 4), colour)
     return tile
 
 
