@@ -62,6 +62,7 @@ rule detection:
         timestamps=lambda wc: timestamp_files(wc.session, [wc.cam]),
     output:
         detections="interim/detections/{session}/{cam}.parquet",
+        candidates="interim/ball_candidates/{session}/{cam}.parquet",
     params:
         reading=lambda wc: camera_reading(wc.session, wc.cam),
         strict=PERCEPTION["strict_mcap"],

@@ -1,0 +1,420 @@
+"""Ball detection without a green screen (config perception.ball.method: track): candidates from motion,
+colour and size in every frame, linked offline into ballistic tracks; a frame's ball is the candidate on
+the best track through it, or none.
+
+The field. TrackNet (Huang et al. 2019; v2, v3) feeds 3 consecutive frames to a U-Net heat-map network
+and reads the ball from the peak: it learns motion and appearance together, needs labelled frames of the
+sport and a GPU (~10-40 ms a frame on a GPU at 512x288), and fails on balls unlike its training (colour,
+size, camera height). The classical trackers (Yan, Christmas & Kittler 2005-2008 for tennis; Hawk-Eye's
+published outline; the many frame-difference ping-pong trackers) take candidate blobs of a foreground
+(background-subtracted or frame-differenced) image, often colour-gated, and resolve which candidate is the
+ball by its trajectory: tracklets grown from triplets of candidates with a constant-acceleration (projected
+ballistic) model, then the tracklets linked by a graph or a dynamic programme into the ball's path. Their
+failure modes are the candidate stage's: a ball not in the foreground (resting, or moving less than its
+size between frames), a ball washed out by motion blur, and other moving things of the ball's look. This
+module is a classical tracker of that family (no labels, CPU only), built on the colour test of
+pingpong.perception.detection (the paper's appendix method, `method: colour`).
+
+Inputs: a camera's frames in order (any reader of pingpong.io.camera_streams) with their time_ns (the
+gates are in seconds: a 30 fps club camera and the 100 Hz twin alike) and the ball's colour test
+(detection.ball_detector of config perception.ball). Outputs: a DETECTIONS table (a row per frame) and a
+BALL_CANDIDATES table (every candidate weighed, kept or the reason it was refused).
+
+1. Candidates (`frame_candidates`), per frame on the image decoded at 1/`track_reduction` (>= TRACK_WIDTH_PX
+   wide: 1280x720 -> 640x360 decoded at 1/2 inside libjpeg; 480x360 whole). A pixel is a candidate pixel
+   where it passes a loosened colour test (detection._colour_mask of the configured detector with its
+   saturation and value floors times TrackSettings.saturation_factor and value_factor and its hue band
+   widened by hue_margin: blur washes a fast ball's saturation, see detection's "Fast far balls") AND it
+   differs from the background, a running average of the frames (time constant background_s, started from
+   the stream's scene image, detection.scene_image) by at least motion_min in the grey level of the
+   absolute BGR difference. So a static ball-coloured box, a sign or a resting ball is no candidate after
+   the background has taken it in. Candidates are the blobs (detection._blobs) within the configured area
+   range (the minimum times the detector's candidate_area on a reduced decode); the best
+   `candidates_per_frame` by a ball-likeness score (the mean saturation of the blob's CORE_PX most
+   saturated pixels over 255, times its fill of its moment ellipse, detection._fill, capped at 1) are
+   kept, each with its sub-pixel centre by detection._weighted_centre, in full-resolution pixels.
+2. Tracks (`link_tracks`), offline over the whole stream. Every candidate not extended by a track of 3
+   or more points seeds a track; a track predicts the next frame's ball from a constant-acceleration fit
+   (per image axis, in time) of its last FIT_POINTS points (constant velocity from 2 points; from 1
+   point anything within max_speed_px_s), and takes the candidates within its gate, gate_px (measurement
+   noise) + accel_px_s2 * dt^2 / 2 (unmodelled acceleration over the time dt since its last point: the
+   gate grows with gaps and with the frame interval). Several candidates in a gate branch the track
+   (multiple hypotheses, capped per track; identical tails merged). A track ends after max_gap_s without a
+   point. Each track is then judged by what it does: fewer than min_track_points points: "short" ("lone"
+   for a single candidate); a median speed below min_speed_px_s: "slow" (a held ball moving with the hand,
+   a rolling ball; "static" below a tenth of it); an RMS residual of its constant-acceleration fits over
+   windows of FIT_POINTS points above max_residual_px: "non_ballistic" (arms, clothing). The remaining
+   tracks are scored by length (points) less their residual in gate units, and the best set of tracks
+   that do not overlap in time by more than OVERLAP_FRAMES frames (a bounce's point may end one and start
+   the next) is chosen by weighted interval scheduling; a frame's detection is the candidate of the best
+   chosen track through it. Candidates on tracks that were not chosen are "off_track".
+
+Settings: TrackSettings, its px values at detection.REFERENCE_WIDTH (scaled with the image's width).
+Per-frame cost and measurements: see "Measured" (filled from benchmarks/bench_ball_detectors.py and
+tests/test_ball_track.py).
+
+Failure modes (by construction): a ball that rests or moves slower than min_speed_px_s is never reported
+(the ball in play moves); a ball in front of a background of its own colour differs too little from the
+background; a second ball tossed along a ballistic path during play is a valid track and competes by
+length; a whole-frame exposure change makes every ball-coloured static thing a candidate for about
+background_s (they are refused as static, but they crowd the per-frame candidate cap); a moving camera has
+no background.
+"""
+
+import logging
+from collections.abc import Iterable
+from dataclasses import dataclass, replace
+
+import cv2
+import numpy as np
+import pandas as pd
+
+from pingpong.perception import detection
+from pingpong.perception.detection import (
+    CORE_PX,
+    REFERENCE_WIDTH,
+    BallDetector,
+    _blobs,
+    _colour_mask,
+    _fill,
+    _is_seam,
+    _weighted_centre,
+)
+
+log = logging.getLogger(__name__)
+
+TRACK_WIDTH_PX = 640  # px: the narrowest image candidates are searched on (1280x720 at 1/2)
+FIT_POINTS = 7  # a track's last points fitted with constant acceleration to predict the next
+MAX_BRANCHES = 3  # candidates in one gate that each extend a track (the nearest first)
+MAX_TRACKS = 200  # live tracks kept at once (the longest first): a bound on the hypotheses
+_APART = np.ones((5, 5), np.uint8)  # a washed blob's pixels lie >= 3 px from the colour test's blobs
+CANDIDATE_COLUMNS = ("time_ns", "u", "v", "area_px", "score", "kept", "reason")
+
+
+@dataclass(frozen=True)
+class TrackSettings:
+    """The track method's settings; px at REFERENCE_WIDTH, scaled with the image's width."""
+
+    washed_value_factor: float = 0.75  # of the colour test's value floor, for a washed ball's pixels
+    motion_min: int = 12  # grey level of |frame - background| from which a pixel moves
+    background_s: float = 0.5  # s, time constant of the running background
+    candidates_per_frame: int = 4  # the best blobs of a frame kept as candidates
+    max_speed_px_s: float = 9000.0  # a one-point track's reach: px/s at REFERENCE_WIDTH
+    gate_px: float = 6.0  # px at REFERENCE_WIDTH: a prediction's error with no time elapsed
+    accel_px_s2: float = 30000.0  # px/s^2 at REFERENCE_WIDTH: acceleration the model misses
+    max_gap_s: float = 0.1  # s without a point after which a track ends
+    min_track_points: int = 5  # fewer points: too short to tell a ball from a look-alike
+    min_speed_px_s: float = 150.0  # px/s at REFERENCE_WIDTH: slower tracks are held or rolling balls
+    max_residual_px: float = 3.0  # px at REFERENCE_WIDTH: RMS of a track's constant-acceleration fits
+
+
+def track_settings(track: dict | None) -> TrackSettings:
+    """TrackSettings of config perception.ball.track (its keys are the fields; missing ones default)."""
+    return replace(TrackSettings(), **(track or {}))
+
+
+def track_reduction(width: int) -> int:
+    """The decoder reduction (1, 2, 4 or 8) of a stream `width` px wide for candidates: the largest that keeps
+    the image >= TRACK_WIDTH_PX wide."""
+    return next((r for r in (8, 4, 2) if width / r >= TRACK_WIDTH_PX), 1)
+
+
+def loosened(detector: BallDetector, settings: TrackSettings) -> BallDetector:
+    """The colour test of `detector` loosened for a washed ball's pixels: its blur test's saturation floor
+    (detection's "Fast far balls") and its value floor times washed_value_factor, with no scene contrast
+    (the running background does that job)."""
+    return replace(detector, saturation_min=detector.blur_saturation_min, scene_contrast_min=0,
+                   value_min=int(detector.value_min * settings.washed_value_factor))
+
+
+class Background:
+    """A running average of a stream's frames (float32 BGR), its time constant in seconds of stream time."""
+
+    def __init__(self, image: np.ndarray, time_constant_s: float):
+        self.mean = image.astype(np.float32)
+        self.time_constant_s = time_constant_s
+        self.last_ns = None
+
+    def moving(self, image: np.ndarray, time_ns: int, threshold: int) -> np.ndarray:
+        """uint8 0/255 mask of the pixels of `image` that differ from the background by `threshold` (grey
+        level of the absolute difference); then the background takes in the image."""
+        difference = cv2.cvtColor(cv2.absdiff(image, cv2.convertScaleAbs(self.mean)), cv2.COLOR_BGR2GRAY)
+        dt = 0.0 if self.last_ns is None else max(time_ns - self.last_ns, 0) * 1e-9
+        cv2.accumulateWeighted(image, self.mean, float(-np.expm1(-dt / self.time_constant_s)))
+        self.last_ns = time_ns
+        return cv2.threshold(difference, threshold - 1, 255, cv2.THRESH_BINARY)[1]
+
+
+def _score(hsv: np.ndarray, x: int, y: int, blob: np.ndarray, channel: int) -> float:
+    """Ball-likeness of a blob: the mean of its CORE_PX highest values of HSV `channel` (the detector's
+    centre channel: an orange ball's saturation) over 255, times its fill of its moment ellipse
+    (detection._fill, at most 1)."""
+    rows, cols = np.nonzero(blob)
+    values = hsv[y + rows, x + cols, channel]
+    core = np.partition(values, -CORE_PX)[-CORE_PX:].mean() if len(values) > CORE_PX else values.max()
+    return float(core) / 255 * min(_fill(blob)[0], 1.0)
+
+
+def frame_candidates(image: np.ndarray, reduction: int, detector: BallDetector, moving: np.ndarray,
+                     settings: TrackSettings) -> list[tuple]:
+    """Candidates (u, v, area_px, score, reason) of an image decoded at 1/reduction, u, v and area in
+    full-resolution pixels: reason '' for the best candidates_per_frame, 'rank' for the others, 'size' for
+    moving ball-coloured blobs above the area range, 'colour' for blobs of the colour test that are a
+    red/yellow seam (detection._is_seam)."""
+    hsv = cv2.cvtColor(image, cv2.COLOR_BGR2HSV)
+    width = image.shape[1]
+    strict = _colour_mask(hsv, replace(detector, scene_contrast_min=0), width, None) & moving
+    min_area, max_area, _ = detector.scaled(width)
+    if reduction > 1:
+        min_area *= detector.candidate_area
+    found, taken = [], np.zeros_like(strict)
+    for x, y, w, h, blob, area in _blobs(strict, min_area, np.inf):
+        reason = "size" if area > max_area else "colour" if \
+            detector.seams and _is_seam(hsv, x, y, blob, detector.saturation_min) else ""
+        found.append((x, y, blob, area, reason))
+        taken[y:y + h, x:x + w] |= blob
+    # a washed ball's blob: of the loosened test with a pixel at the blur test's peak, apart from those above
+    loose = _colour_mask(hsv, loosened(detector, settings), width, None) & moving
+    loose[cv2.dilate(taken, _APART) > 0] = 0
+    washed_area = detector.blur_max_area_px * (width / REFERENCE_WIDTH) ** 2
+    for x, y, w, h, blob, area in _blobs(loose, min_area, washed_area):
+        if hsv[y:y + h, x:x + w, 1][blob > 0].max() >= detector.blur_peak_saturation:
+            found.append((x, y, blob, area, ""))
+    return _ranked(hsv, found, reduction, detector, settings)
+
+
+def _ranked(hsv, found, reduction: int, detector: BallDetector, settings: TrackSettings) -> list[tuple]:
+    """frame_candidates' rows of its blobs (x, y, blob, area, reason): the best candidates_per_frame by
+    _score, centred by detection._weighted_centre, and the others; in full-resolution pixels."""
+    offset = (reduction - 1) / 2  # a reduced pixel averages reduction x reduction full ones: their centre
+    scored = sorted(((_score(hsv, x, y, blob, detector.centre_channel), x, y, blob, area, reason)
+                     for x, y, blob, area, reason in found), key=lambda c: (c[5] != "", -c[0]))
+    rows = []
+    for rank, (score, x, y, blob, area, reason) in enumerate(scored):
+        if not reason and rank >= settings.candidates_per_frame:
+            reason = "rank"
+        u, v = _weighted_centre(hsv, x, y, blob, detector) if not reason else \
+            (x + (blob.shape[1] - 1) / 2, y + (blob.shape[0] - 1) / 2)
+        rows.append((reduction * u + offset, reduction * v + offset, int(round(area * reduction**2)), score,
+                     reason))
+    return rows
+
+
+def stream_candidates(frames: Iterable, detector: BallDetector, settings: TrackSettings,
+                      scene: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, list, int]:
+    """(time_ns (n,), decode_ok (n,), each frame's candidates (frame_candidates), full-resolution width) of
+    a stream, decoding one frame at a time at track_reduction of the first image's width. scene: a BGR image
+    of the static scene at full resolution (detection.scene_image) that starts the background; None: the
+    first frame that decodes."""
+    times, decoded, candidates = [], [], []
+    reduction, background, shape, width = None, None, None, 0
+    for frame in frames:
+        if reduction is None:
+            first, _ = frame.decode(1)
+            if first is not None:
+                width = first.shape[1]
+                reduction = track_reduction(width)
+        image, reason = frame.decode(reduction) if reduction else (None, "no image")
+        if not reason and image is not None and shape is not None and image.shape != shape:
+            reason = f"image {image.shape[1]}x{image.shape[0]}, the stream's is {shape[1]}x{shape[0]}"
+        if reason or image is None:
+            log.warning("frame at %d ns: %s; skipped", frame.time_ns, reason or "no image")
+            found = []
+        else:
+            if background is None:
+                shape = image.shape
+                start = image if scene is None else \
+                    cv2.resize(scene, shape[1::-1], interpolation=cv2.INTER_AREA)
+                background = Background(start, settings.background_s)
+            moving = background.moving(image, frame.time_ns, settings.motion_min)
+            found = frame_candidates(image, reduction, detector, moving, settings)
+        times.append(frame.time_ns)
+        decoded.append(not reason and image is not None)
+        candidates.append(found)
+    return np.asarray(times, np.int64), np.asarray(decoded, bool), candidates, width
+
+
+@dataclass
+class _Track:
+    """A hypothesis: its points as (frame, candidate index) and their times (s) and positions (px)."""
+
+    points: list
+    t: list
+    uv: list
+
+    def extended(self, frame: int, index: int, t: float, uv) -> "_Track":
+        return _Track(self.points + [(frame, index)], self.t + [t], self.uv + [uv])
+
+    def predict(self, t: float) -> np.ndarray | None:
+        """The position at time t from a constant-acceleration fit of the last FIT_POINTS points (constant
+        velocity from 2), or None from 1 point."""
+        n = min(len(self.t), FIT_POINTS)
+        if n < 2:
+            return None
+        times = np.asarray(self.t[-n:]) - self.t[-1]
+        design = np.vander(times, 3 if n >= 3 else 2)
+        coefficients = np.linalg.lstsq(design, np.asarray(self.uv[-n:]), rcond=None)[0]
+        return np.vander([t - self.t[-1]], design.shape[1]) @ coefficients
+
+
+def _gates(track: _Track, t: float, settings: TrackSettings, scale: float) -> tuple[np.ndarray | None, float]:
+    """(predicted uv or the last point's for a one-point track, gate radius px) of a track at time t."""
+    dt = t - track.t[-1]
+    predicted = track.predict(t)
+    if predicted is None:
+        return np.asarray(track.uv[-1]), scale * (settings.gate_px + settings.max_speed_px_s * dt)
+    return predicted[0], scale * (settings.gate_px + settings.accel_px_s2 * dt**2 / 2)
+
+
+def link_tracks(times_ns: np.ndarray, candidates: list[list[tuple]], settings: TrackSettings,
+                scale: float) -> list[_Track]:
+    """Every track hypothesis of the candidates (those with reason ''), ended: see the module docstring.
+    scale: the image's width over REFERENCE_WIDTH."""
+    t_s = (times_ns - times_ns[0]) * 1e-9 if len(times_ns) else np.zeros(0)
+    live, ended = [], []
+    for frame, found in enumerate(candidates):
+        t = t_s[frame]
+        uv = np.array([c[:2] for c in found if not c[4]], np.float64).reshape(-1, 2)
+        still, extended_by_long = [], set()
+        for track in live:
+            if t - track.t[-1] > settings.max_gap_s:
+                ended.append(track)
+                continue
+            in_gate = []
+            if len(uv):
+                centre, gate = _gates(track, t, settings, scale)
+                distance = np.hypot(*(uv - centre).T)
+                in_gate = [int(i) for i in np.argsort(distance)[:MAX_BRANCHES] if distance[i] <= gate]
+            if not in_gate:  # this frame shows no ball of this track (a miss, or it has ended)
+                still.append(track)
+            for index in in_gate:
+                still.append(track.extended(frame, index, t, uv[index]))
+                if len(track.t) >= 2:
+                    extended_by_long.add(index)
+        still += [_Track([(frame, i)], [t], [uv[i]]) for i in range(len(uv)) if i not in extended_by_long]
+        live, dropped = _pruned(still)
+        ended += dropped
+    return ended + live
+
+
+def _pruned(tracks: list[_Track]) -> tuple[list[_Track], list[_Track]]:
+    """(live, ended) tracks: of the tracks with the same last 3 points, the one with the most points since
+    the latest start among them lives on (a track that jumped a gap loses to the one that followed the
+    ball through it), the others end before that start; at most MAX_TRACKS live, the longest first."""
+    groups = {}
+    for track in tracks:
+        groups.setdefault(tuple(track.points[-3:]), []).append(track)
+    live, ended = [], []
+    for group in groups.values():
+        start = max(track.points[0][0] for track in group)
+        best = max(group, key=lambda tr: (sum(frame >= start for frame, _ in tr.points), len(tr.points)))
+        live.append(best)
+        for track in group:
+            before = sum(frame < start for frame, _ in track.points)
+            if track is not best and before:
+                ended.append(_Track(track.points[:before], track.t[:before], track.uv[:before]))
+    live.sort(key=lambda tr: -len(tr.points))
+    return live[:MAX_TRACKS], ended + live[MAX_TRACKS:]
+
+
+def _residual_px(track: _Track) -> float:
+    """RMS residual (px) of constant-acceleration fits over each window of FIT_POINTS points of a track."""
+    t, uv = np.asarray(track.t), np.asarray(track.uv)
+    n = min(len(t), FIT_POINTS)
+    squares = []
+    for first in range(0, len(t) - n + 1):
+        times, points = t[first:first + n] - t[first], uv[first:first + n]
+        design = np.vander(times, 3)
+        fit = design @ np.linalg.lstsq(design, points, rcond=None)[0]
+        squares.append(((points - fit) ** 2).sum(axis=1).mean())
+    return float(np.sqrt(np.mean(squares)))
+
+
+def judge(track: _Track, settings: TrackSettings, scale: float) -> tuple[str, float]:
+    """(reason, score) of a track: reason '' for a ball's flight (score: points less the residual in gate
+    units), else why not (module docstring)."""
+    if len(track.points) == 1:
+        return "lone", 0.0
+    if len(track.points) < settings.min_track_points:
+        return "short", 0.0
+    steps = np.hypot(*np.diff(np.asarray(track.uv), axis=0).T) / np.diff(track.t)
+    speed = float(np.median(steps)) / scale
+    if speed < settings.min_speed_px_s:
+        return ("static" if speed < settings.min_speed_px_s / 10 else "slow"), 0.0
+    residual = _residual_px(track) / scale
+    if residual > settings.max_residual_px:
+        return "non_ballistic", 0.0
+    return "", len(track.points) - residual / settings.gate_px
+
+
+def choose_points(tracks: list[tuple[_Track, float]], min_points: int) -> dict[int, int]:
+    """frame -> candidate index of the ball: the tracks (track, score) taken best first, each on the frames
+    no better track has taken, where it still has min_points there (hypotheses branch and share points, and
+    a bounce's or hit's point may end one flight and start the next)."""
+    ball = {}
+    for track, _ in sorted(tracks, key=lambda ts: -ts[1]):
+        free = [(frame, index) for frame, index in track.points if frame not in ball]
+        if len(free) >= min_points:
+            ball.update(free)
+    return ball
+
+
+def detect_stream(frames: Iterable, detector: BallDetector, settings: TrackSettings,
+                  scene: np.ndarray | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(DETECTIONS table, BALL_CANDIDATES table) of a stream of frames (as detection.detect_stream's).
+    scene: stream_candidates'."""
+    times, decoded, candidates, width = stream_candidates(frames, detector, settings, scene)
+    scale = width / REFERENCE_WIDTH if width else 1.0
+    tracks = link_tracks(times, candidates, settings, scale)
+    judged = [(track, *judge(track, settings, scale)) for track in tracks]
+    ball = choose_points([(track, score) for track, reason, score in judged if not reason],
+                         settings.min_track_points)
+    reasons = {}  # (frame, index) -> the reason of the longest track through it, '' on a valid one
+    for track, reason, _ in sorted(judged, key=lambda trs: (not trs[1], len(trs[0].points))):
+        for point in track.points:
+            reasons[point] = "off_track" if not reason else reason
+    return (_detections(times, decoded, candidates, ball),
+            _candidate_table(times, candidates, ball, reasons))
+
+
+def _detections(times, decoded, candidates, ball) -> pd.DataFrame:
+    """The DETECTIONS table of the chosen candidates."""
+    us, vs, areas = np.full(len(times), np.nan), np.full(len(times), np.nan), np.zeros(len(times), np.int32)
+    for frame, index in ball.items():
+        us[frame], vs[frame], areas[frame] = candidates[frame][index][:3]
+    return pd.DataFrame({"time_ns": times, "u": us, "v": vs, "area_px": areas, "detected": np.isfinite(us),
+                         "decode_ok": decoded})
+
+
+def _candidate_table(times, candidates, ball, reasons) -> pd.DataFrame:
+    """The BALL_CANDIDATES table: every candidate, kept or why not."""
+    rows = []
+    for frame, found in enumerate(candidates):
+        ranked = 0
+        for u, v, area, score, reason in found:
+            if not reason:
+                kept = ball.get(frame) == ranked
+                reason = "kept" if kept else reasons.get((frame, ranked), "lone")
+                ranked += 1
+            rows.append((times[frame], u, v, area, score, reason == "kept", reason))
+    return candidate_frame(rows)
+
+
+def candidate_frame(rows) -> pd.DataFrame:
+    """A BALL_CANDIDATES table of (time_ns, u, v, area_px, score, kept, reason) rows."""
+    table = pd.DataFrame(rows, columns=list(CANDIDATE_COLUMNS))
+    return table.astype({"time_ns": np.int64, "u": np.float64, "v": np.float64, "area_px": np.int32,
+                         "score": np.float64, "kept": bool, "reason": str})
+
+
+def colour_candidates(detections: pd.DataFrame) -> pd.DataFrame:
+    """The BALL_CANDIDATES table of the colour method: its detections, each kept (score 1)."""
+    found = detections[detections["detected"]]
+    n = len(found)
+    return candidate_frame(zip(found["time_ns"], found["u"], found["v"], found["area_px"], np.ones(n),
+                               np.ones(n, bool), ["kept"] * n, strict=True))
+
+
+def scene_for(frames: Iterable) -> np.ndarray | None:
+    """The stream's scene image (detection.scene_image at its sampling) that starts the background."""
+    return detection.scene_image(frames, detection.SCENE_EVERY, detection.SCENE_FRAMES)
