@@ -5,12 +5,12 @@ The frames: 58 labelled 1920x1080 frames of an amateur indoor game with a white 
 task1-bxvrc, version 1) in the public repository Rahimdzx/table-tennis-ball-detection (commit c16289e),
 licence CC BY 4.0: attribution to that project and repository is required wherever results on them are shown.
 
-Each frame is searched alone (the frames are sparse samples: no tracking), as the detection stage searches a
-stream's first frame, against the scene image (detection.scene_image: here the median of the 58 frames,
-which spread over the video as the stage's samples spread over a stream). A frame counts as a hit when the
-detected centre lies in its labelled box. The white setting (detection.BALL_COLOURS) was fitted on the
-even-numbered frames (file names sorted) and held out on the odd ones (the module docstring of
-pingpong.perception.detection, "A white ball").
+Each frame is searched alone (the frames are sparse samples: no tracking) as the detection stage searches a
+stream's first frame: detection.ball_detector of the config's `colour: white`, then detect_stream with the
+scene image (detection.scene_image: here the median of all 58 frames, which spread over the video as the
+stage's 25 samples spread over a stream). A frame counts as a hit when the detected centre lies in its
+labelled box. The white setting (detection.BALL_COLOURS) was chosen on the even-numbered frames (file names
+sorted) and held out on the odd ones (the module docstring of pingpong.perception.detection, "A white ball").
 """
 
 from pathlib import Path
@@ -44,7 +44,7 @@ def frames():
 @pytest.fixture(scope="module")
 def hits(frames):
     """Whether the white setting's ball lies in each frame's labelled box."""
-    scene = Scene(scene_image(frame for frame, _ in frames))
+    scene = Scene(scene_image((frame for frame, _ in frames), count=len(frames)))
     out = []
     for frame, (cx, cy, w, h) in frames:
         found = detect_stream([frame], WHITE, scene=scene).iloc[0]
@@ -54,14 +54,14 @@ def hits(frames):
 
 
 def test_the_white_ball_is_found_in_its_box(hits):
-    # measured: 20 of the 29 fitted frames, 27 of the 29 held out (47 of 58, 81 %); the misses are blobs of
-    # the floor where a player stood in most frames (brighter than the scene's median) and a hidden ball
+    # measured: 28 of the 29 fitted frames, 26 of the 29 held out (54 of 58, 93 %); the misses are balls in
+    # a hand (one in its shadow, below the value floor), a ball over a red bat and one over a pale floor
     assert len(hits) == 58
-    assert hits[0::2].sum() >= 20 and hits[1::2].sum() >= 27
+    assert hits[0::2].sum() >= 28 and hits[1::2].sum() >= 26
 
 
-@pytest.mark.xfail(strict=True, reason="issue 49's bar, 90 % of the frames, is not met: 81 % measured")
 def test_the_white_ball_meets_the_bar(hits):
+    # issue 49's bar: the ball's box hit in >= 90 % of the frames
     assert hits.mean() >= 0.9
 
 

@@ -166,6 +166,7 @@ CANDIDATE_AREA = 0.5  # of the minimum area: what a reduced blob keeps of a ball
 CORE_PX = 3  # pixels of a blob's saturated core (module docstring, "Skin at low JPEG quality")
 SKIN_HUE, SKIN_SATURATION_MIN = (5, 14), 70  # OpenCV HSV of skin around a blob (the twin's: H 8-10, S 95-140)
 _NEAR_KERNEL, _FAR_KERNEL = np.ones((3, 3), np.uint8), np.ones((7, 7), np.uint8)
+_CHANNEL_SUM = np.ones((1, 3), np.float32)  # cv2.transform: the sum of a pixel's 3 channels
 
 
 @dataclass(frozen=True)
@@ -180,14 +181,19 @@ class BallDetector:
     value_max: int = 255
     seams: bool = True  # refuse red/yellow seams (`_is_seam`): an orange ball's look-alikes
     # a pale ball (module docstring, "A white ball"): the blob's pixels brighter than the scene's background
-    # image by this much (0: no background used), the mask opened by a disc of open_px (px at REFERENCE_WIDTH;
-    # 0: not opened), blobs filling at least min_fill of their moment ellipse and at most max_aspect long,
-    # the best filled one taken (not the largest), its centre weighted by centre_channel above its rim's
-    scene_contrast_min: int = 0  # 0..255, HSV value
+    # image by this much (0: no background used), with scene_colour also those whose colour is off the
+    # scene's by this much (`_differs_from_scene`); the mask opened by a disc of open_px (px at
+    # REFERENCE_WIDTH; 0: not opened), blobs filling at least min_fill of their moment ellipse and at most
+    # max_aspect long, the best filled one taken (not the largest), with pick_isolated first the one whose
+    # ring moved least against the scene, then the one least like its ring (`_ring_contrast`); its centre
+    # weighted by centre_channel above its rim's
+    scene_contrast_min: int = 0  # 0..255: HSV value, and BGR distance with scene_colour
+    scene_colour: bool = False
     open_px: float = 0.0
     min_fill: float = 0.0
     max_aspect: float = float("inf")
     pick_roundest: bool = False
+    pick_isolated: bool = False
     centre_channel: int = 1  # HSV channel of _weighted_centre's weights: 1 saturation, 2 value
     rim_hue: tuple[int, int] = RIM_HUE  # hue of the rim pixels that may carry part of the ball
     candidate_area: float = CANDIDATE_AREA  # of the minimum area, on a reduced decode (module docstring)
@@ -215,19 +221,27 @@ class BallDetector:
 
 
 class Scene:
-    """The scene without the ball (a BGR image at full resolution, e.g. `scene_image`): its HSV value at
-    the size of each image searched, for BallDetector.scene_contrast_min."""
+    """The scene without the ball (a BGR image at full resolution, e.g. `scene_image`): its HSV value or
+    its BGR image at the size of each image searched, for BallDetector.scene_contrast_min."""
 
     def __init__(self, image_bgr: np.ndarray):
+        self._image = image_bgr
         self._value = cv2.cvtColor(image_bgr, cv2.COLOR_BGR2HSV)[..., 2]
         self._sized = {}
 
     def value(self, shape: tuple) -> np.ndarray:
         """(height, width) uint8 value of the scene resized to `shape` (height, width, ...)."""
-        size = shape[:2]
-        if size not in self._sized:
-            self._sized[size] = cv2.resize(self._value, size[::-1], interpolation=cv2.INTER_AREA)
-        return self._sized[size]
+        return self._resized("value", self._value, shape)
+
+    def image(self, shape: tuple) -> np.ndarray:
+        """(height, width, 3) uint8 BGR of the scene resized to `shape` (height, width, ...)."""
+        return self._resized("image", self._image, shape)
+
+    def _resized(self, name: str, full: np.ndarray, shape: tuple) -> np.ndarray:
+        key = (name, *shape[:2])
+        if key not in self._sized:
+            self._sized[key] = cv2.resize(full, shape[:2][::-1], interpolation=cv2.INTER_AREA)
+        return self._sized[key]
 
 
 def scene_image(frames: Iterable, every: int = 1, count: int = 25) -> np.ndarray | None:
@@ -243,17 +257,44 @@ def scene_image(frames: Iterable, every: int = 1, count: int = 25) -> np.ndarray
     return np.median(np.stack(images), axis=0).astype(np.uint8) if images else None
 
 
+def _scene_window(scene: Scene, detector: BallDetector, shape: tuple) -> np.ndarray:
+    """The scene at the size of an image of `shape` as the detector compares with it: its BGR image
+    (scene_colour) or its value."""
+    return scene.image(shape) if detector.scene_colour else scene.value(shape)
+
+
+def _differs_from_scene(hsv: np.ndarray, scene_value: np.ndarray, contrast: int) -> np.ndarray:
+    """bool mask of the pixels of `hsv` brighter than the scene on the same window by `contrast` in HSV
+    value, scene_value being its value (h, w) or its BGR (h, w, 3: `_scene_window`); with its BGR, also
+    those whose colour is off the scene's by `contrast` (the BGR distance from the scene's colour scaled to
+    fit: Horprasert et al. 1999's chromaticity distortion. A shadow or a light falling on the scene scales
+    its colour; a white ball over a pale floor changes it)."""
+    if scene_value.ndim == 2:
+        return cv2.subtract(hsv[..., 2], scene_value) >= contrast
+    brighter = cv2.subtract(hsv[..., 2], functools.reduce(cv2.max, cv2.split(scene_value))) >= contrast
+    # back from HSV (within 2 of the decoded BGR on pale pixels), not the BGR window: the callers hold hsv
+    bgr, scene = cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR).astype(np.float32), scene_value.astype(np.float32)
+    along = _dot(bgr, scene)
+    off_squared = _dot(bgr, bgr) - along * along / np.maximum(_dot(scene, scene), 1.0)  # Pythagoras
+    return brighter | (off_squared >= contrast**2)
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Per-pixel dot product (h, w) of two float32 (h, w, 3) images."""
+    return cv2.transform(cv2.multiply(a, b), _CHANNEL_SUM)
+
+
 def _colour_mask(hsv: np.ndarray, detector: BallDetector, width: int, scene_value: np.ndarray | None,
                  saturation_min: int | None = None) -> np.ndarray:
     """uint8 0/255 mask of the colour test on `hsv`, a window of an image `width` px wide (the blur test's
-    with its saturation_min): the HSV range, brighter than scene_value (the scene's value on the same
-    window) where the detector asks, opened where it asks."""
+    with its saturation_min): the HSV range, differing from scene_value (the scene on the same window,
+    `_scene_window`) where the detector asks (`_differs_from_scene`), opened where it asks."""
     low = (detector.hue_min, detector.saturation_min if saturation_min is None else saturation_min,
            detector.value_min)
     mask = cv2.inRange(hsv, low, (detector.hue_max, detector.saturation_max, detector.value_max))
     if detector.scene_contrast_min > 0:
-        brighter = cv2.subtract(hsv[..., 2], scene_value) >= detector.scene_contrast_min
-        mask &= brighter.astype(np.uint8) * 255
+        differs = _differs_from_scene(hsv, scene_value, detector.scene_contrast_min)
+        mask &= differs.astype(np.uint8) * 255
     side = int(round(detector.open_px * width / REFERENCE_WIDTH))
     if side > 1:
         disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (side, side))
@@ -266,8 +307,9 @@ def _colour_mask(hsv: np.ndarray, detector: BallDetector, width: int, scene_valu
 BALL_COLOURS = {
     "orange": {},
     "white": dict(hue_min=0, hue_max=179, saturation_min=0, saturation_max=110, value_min=160, seams=False,
-                  core_saturation_min=0, blur_peak_saturation=256, scene_contrast_min=15, open_px=4.5,
-                  min_fill=0.9, max_aspect=3.0, pick_roundest=True, centre_channel=2, rim_hue=(0, 179),
+                  core_saturation_min=0, blur_peak_saturation=256, scene_contrast_min=30, scene_colour=True,
+                  open_px=4.5, min_fill=0.9, max_aspect=3.0, pick_roundest=True, pick_isolated=True,
+                  centre_channel=2, rim_hue=(0, 179),
                   min_area_px=67.5, max_area_px=675.0, candidate_area=1.0),
 }
 SCENE_FRAMES, SCENE_EVERY = 25, 30  # the scene image of a stream: the median of every 30th frame, 25 of them
@@ -352,21 +394,47 @@ def _fill(blob: np.ndarray) -> tuple[float, float]:
     return len(rows) / (4 * np.pi * np.sqrt(small * large)), float(np.sqrt(large / small))
 
 
+def _ring_contrast(hsv: np.ndarray, x: int, y: int, blob: np.ndarray, scene_value: np.ndarray,
+                   contrast: int) -> tuple[float, float]:
+    """(moved, distance) of a blob (mask at x, y of `hsv`) and the ring r..2r px around it (r: the radius
+    of a disc of its area): the share of the ring that differs from the scene (`_differs_from_scene`,
+    scene_value on the same window) and the BGR distance of the blob's mean colour from the ring's median.
+    A white ball in flight: a ring that stands still (share ~0) and a colour unlike the ball's; a patch of
+    a shirt, of the floor a player left, of a shaded or lit wall: a ring that moved, or one like it."""
+    radius = max(1, int(np.sqrt(blob.sum() / np.pi)))
+    x0, y0, patch, core = _around(hsv, x, y, blob, 2 * radius + 1)
+    scene = scene_value[y0:y0 + patch.shape[0], x0:x0 + patch.shape[1]]
+    near, far = (cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1,) * 2) for r in (radius, 2 * radius))
+    ring = cv2.dilate(core, far) > cv2.dilate(core, near)
+    if not ring.any():  # a blob filling its window: nothing around it to judge by
+        return 1.0, 0.0
+    bgr = cv2.cvtColor(patch, cv2.COLOR_HSV2BGR).astype(np.float32)
+    distance = np.linalg.norm(bgr[core > 0].mean(axis=0) - np.median(bgr[ring], axis=0))
+    return float(_differs_from_scene(patch, scene, contrast)[ring].mean()), float(distance)
+
+
 def _largest_blob(mask: np.ndarray, min_area: float, max_area: float, hsv: np.ndarray, detector: BallDetector,
-                  width: int):
+                  width: int, scene_value: np.ndarray | None = None):
     """(bounding box x, y, w, h, blob mask (h, w) uint8 0/1, pixel count) of the largest blob within the
-    area bounds (the best filled, `_fill`, with pick_roundest) that is neither a red/yellow seam
-    (`_is_seam`, where the detector asks) nor on skin without a ball's core (`_skin_without_core`), nor
-    less filled or longer than the detector's shape bounds, or None."""
+    area bounds (the best filled, `_fill`, with pick_roundest; with pick_isolated first the one whose ring
+    moved least against scene_value, the scene on the same window, then the one least like its ring:
+    `_ring_contrast`) that is neither a red/yellow seam (`_is_seam`, where the detector asks) nor on skin
+    without a ball's core (`_skin_without_core`), nor less filled or longer than the detector's shape
+    bounds, or None."""
     shaped = detector.min_fill > 0 or detector.max_aspect < float("inf") or detector.pick_roundest
-    best, best_score = None, -1.0
+    best, best_rank = None, None
     for x, y, w, h, blob, area in _blobs(mask, min_area, max_area):
         fill, aspect = _fill(blob) if shaped else (1.0, 1.0)
-        score = fill if detector.pick_roundest else area
-        if score > best_score and fill >= detector.min_fill and aspect <= detector.max_aspect \
+        if fill < detector.min_fill or aspect > detector.max_aspect:
+            continue
+        rank = (fill if detector.pick_roundest else area,)
+        if detector.pick_isolated:
+            moved, distance = _ring_contrast(hsv, x, y, blob, scene_value, detector.scene_contrast_min)
+            rank = (-moved, distance, *rank)
+        if (best_rank is None or rank > best_rank) \
                 and not (detector.seams and _is_seam(hsv, x, y, blob, detector.saturation_min)) \
                 and not _skin_without_core(hsv, x, y, blob, detector, width):
-            best, best_score = (x, y, w, h, blob, area), score
+            best, best_rank = (x, y, w, h, blob, area), rank
     return best
 
 
@@ -446,9 +514,9 @@ def detect_ball(image_bgr: np.ndarray, detector: BallDetector, previous_uv: tupl
     x0, y0, x1, y1 = _window(image_bgr.shape, detector, previous_uv)
     window = image_bgr[y0:y1, x0:x1]
     hsv = cv2.cvtColor(window, cv2.COLOR_BGR2HSV)
-    scene_value = None if scene is None else scene.value(image_bgr.shape)[y0:y1, x0:x1]
+    scene_value = None if scene is None else _scene_window(scene, detector, image_bgr.shape)[y0:y1, x0:x1]
     mask = _colour_mask(hsv, detector, image_bgr.shape[1], scene_value)
-    found = _largest_blob(mask, min_area, max_area, hsv, detector, image_bgr.shape[1])
+    found = _largest_blob(mask, min_area, max_area, hsv, detector, image_bgr.shape[1], scene_value)
     if found is None and previous_uv is not None and velocity is not None:
         expected = (previous_uv[0] + velocity[0] - x0, previous_uv[1] + velocity[1] - y0)
         found = _blurred_blob(hsv, detector, image_bgr.shape[1], expected, velocity, scene_value)
@@ -490,9 +558,11 @@ def _upsampled_centre(image: np.ndarray, reduction: int, found, detector: BallDe
     x0, y0 = max(cu - half, 0), max(cv - half, 0)
     crop = np.s_[y0:cv + half + 1, x0:cu + half + 1]
     hsv = cv2.cvtColor(_upsampled(image[crop], reduction), cv2.COLOR_BGR2HSV)
-    scene_value = None if scene is None else _upsampled(scene.value(image.shape)[crop], reduction)
+    scene_value = None if scene is None else _upsampled(_scene_window(scene, detector, image.shape)[crop],
+                                                        reduction)
     mask = _colour_mask(hsv, detector, width, scene_value)
-    blob = _largest_blob(mask, min_area * detector.candidate_area, max_area, hsv, detector, width)
+    blob = _largest_blob(mask, min_area * detector.candidate_area, max_area, hsv, detector, width,
+                         scene_value)
     offset = (reduction - 1) / 2  # a reduced pixel averages reduction x reduction full ones: their centre
     if blob is None:  # the interpolation lost it: the reduced image's centre
         return reduction * found[0] + offset, reduction * found[1] + offset, found[2] * reduction**2
