@@ -72,5 +72,6 @@ rule all:
         rules.robot_scene.output,
         twin_reports(),
         overlay_figures(),
+        ball_qa_figures(),
         report_pages(),
     default_target: True
