@@ -5,10 +5,11 @@ the tile), and the stage on a tiny MCAP stream written with pingpong's own write
 import cv2
 import numpy as np
 import pandas as pd
+from conftest import TINY_RUN
 from hypothesis import given
 from hypothesis import strategies as st
 
-from pingpong.common.artifacts import Provenance, write_table
+from pingpong.common.artifacts import Provenance, read_table, write_table
 from pingpong.common.script import Named, StageContext
 from pingpong.io.camera_streams import CameraFrame
 from pingpong.io.mcap_io import CameraStreamWriter
@@ -198,3 +199,16 @@ def test_the_stage_writes_the_sheet_of_a_tiny_stream(tmp_path):
     u, v = 60.0 + 15 * frame, 120.0 + 4 * frame
     x0, y0, side = crop_square(u, v, 20.0, 480, 360)
     assert _near(first, KEPT_BGR, tile_position((u, v), x0, y0, side), 20)
+
+
+def test_the_tiny_run_has_a_sheet_for_every_camera(tiny_run):
+    """rule all's wiring: a sheet per session and camera, a tile per frame with candidates up to 24."""
+    for session in range(TINY_RUN["twin"]["n_sessions"]):
+        for cam in range(TINY_RUN["twin"]["n_cameras"]):
+            name = f"s{session:02d}/cam{cam}"
+            candidates = read_table(tiny_run / f"interim/ball_candidates/{name}.parquet", BALL_CANDIDATES)
+            sheet = cv2.imread(str(tiny_run / f"reports/figures/ball_qa_{name.replace('/', '_')}.jpg"))
+            tile_rows = -(-min(24, candidates["time_ns"].nunique()) // TILE_COLUMNS)
+            assert tile_rows == 4  # the tiny run's streams have far more frames with candidates than tiles
+            band = sheet.shape[0] - tile_rows * (TITLE_PX + TILE_PX)
+            assert sheet.shape[1] == TILE_COLUMNS * TILE_PX and 30 <= band < 90, name
