@@ -208,6 +208,11 @@ def overlay_figures():
     return [f"reports/figures/overlay_{s}_{c}.png" for s in chosen for c in session_cameras(s)]
 
 
+def ball_qa_figures():
+    """The ball-detection QA sheets (reports.ball_qa), one per session and camera."""
+    return [f"reports/figures/ball_qa_{s}_{c}.jpg" for s in sessions() for c in session_cameras(s)]
+
+
 def report_pages():
     return [f"reports/pages/{stage}/{table}.html" for stage, tables in REPORT_TABLES.items() for table in tables]
 

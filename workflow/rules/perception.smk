@@ -245,11 +245,6 @@ rule report_ball_qa:
         STAGE_SCRIPT
 
 
-def ball_qa_figures():
-    """The ball-detection QA sheets (reports.ball_qa), one per session and camera."""
-    return [f"reports/figures/ball_qa_{s}_{c}.jpg" for s in sessions() for c in session_cameras(s)]
-
-
 rule report_perception:
     input:
         cameras="interim/calibration/cameras.json",
