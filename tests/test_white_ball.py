@@ -15,12 +15,22 @@ sorted) and held out on the odd ones (the module docstring of pingpong.perceptio
 
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
 
 from pingpong.io.camera_streams import CameraFrame
 from pingpong.perception.ball_colour import main as ball_colour
-from pingpong.perception.detection import Scene, ball_detector, detect_stream, scene_image
+from pingpong.perception.detection import (
+    Scene,
+    _differs_from_scene,
+    ball_detector,
+    detect_ball,
+    detect_stream,
+    scene_image,
+)
 
 # the project's shared folder beside the checkout, or where these machines mount it (a clean clone for CI
 # may lie elsewhere)
@@ -73,3 +83,53 @@ def test_the_colour_command_measures_a_pale_ball(frames, capsys):
     assert "perception:\n  ball:\n    hsv: {hue: [" in printed
     value = [int(v) for v in printed.split("value: [")[1].split("]")[0].split(",")]
     assert value[1] >= 240  # the ball's core is near white
+
+
+BGR = st.tuples(*[st.integers(0, 255)] * 3)
+
+
+def _hsv(bgr) -> np.ndarray:
+    return cv2.cvtColor(np.array([[bgr]], np.uint8), cv2.COLOR_BGR2HSV)
+
+
+@settings(max_examples=200, deadline=None)
+@given(scene=st.tuples(*[st.integers(40, 255)] * 3), gain=st.floats(0.4, 1.0))
+def test_a_shadow_on_the_scene_is_no_change(scene, gain):
+    # a shadow scales the scene's colour: not brighter, and on the scene's colour line up to rounding and
+    # the HSV round trip (a few levels, far below the white setting's 30)
+    shaded = tuple(int(round(gain * c)) for c in scene)
+    differs = _differs_from_scene(_hsv(shaded), np.array([[scene]], np.uint8), WHITE.scene_contrast_min)
+    assert not differs[0, 0]
+
+
+@settings(max_examples=300, deadline=None)
+@given(pixel=BGR, scene=BGR, contrast=st.integers(5, 80))
+def test_the_colour_test_is_brighter_or_off_the_scene_colour(pixel, scene, contrast):
+    # against the definition in float64: brighter in HSV value, or the distance of the pixel (as the test
+    # sees it, back from HSV) from its projection on the scene's colour
+    hsv = _hsv(pixel)
+    seen = cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR)[0, 0].astype(float)
+    e = np.asarray(scene, float)
+    off = np.linalg.norm(seen - (seen @ e) / max(e @ e, 1.0) * e)
+    assume(abs(off - contrast) > 0.01 * contrast)  # float32 against float64 at the threshold
+    expected = int(hsv[0, 0, 2]) - max(scene) >= contrast or off >= contrast
+    assert _differs_from_scene(hsv, np.array([[scene]], np.uint8), contrast)[0, 0] == expected
+
+
+def test_a_white_ball_over_a_pale_floor_of_its_brightness_differs():
+    # frame 4's ball and floor (median BGR in its box): the ball is no brighter, its colour is off by ~50
+    floor, ball = (217, 188, 173), (194, 206, 218)
+    assert _differs_from_scene(_hsv(ball), np.array([[floor]], np.uint8), WHITE.scene_contrast_min)[0, 0]
+
+
+def test_the_ball_ringed_by_the_still_scene_is_taken():
+    # a grey room; a player (a blue patch the scene does not hold) with a larger white disc on his shirt,
+    # and a smaller white ball in free air: the ball, though the other blob is larger and as round
+    scene = np.full((540, 960, 3), 120, np.uint8)
+    image = scene.copy()
+    cv2.rectangle(image, (600, 150), (800, 450), (140, 60, 40), -1)
+    cv2.circle(image, (700, 300), 9, (235, 240, 245), -1)
+    cv2.circle(image, (300, 200), 6, (235, 240, 245), -1)
+    u, v, _ = detect_ball(image, WHITE, scene=Scene(scene))
+    assert np.hypot(u - 300, v - 200) < 1
+
