@@ -147,6 +147,9 @@ rule triangulation:
         detections=lambda wc: expand(
             "interim/detections/{session}/{cam}.parquet", session=wc.session, cam=session_cameras(wc.session)
         ),
+        candidates=lambda wc: expand(
+            "interim/ball_candidates/{session}/{cam}.parquet", session=wc.session, cam=session_cameras(wc.session)
+        ),
         pose2d=lambda wc: expand(
             "interim/pose2d/{session}/{cam}.parquet", session=wc.session, cam=session_cameras(wc.session)
         ),

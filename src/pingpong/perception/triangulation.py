@@ -7,12 +7,15 @@ called per point, is orders of magnitude slower; see benchmarks/bench_triangulat
 Outlier views are rejected by their reprojection error through the real (distorted) lens.
 """
 
+import logging
 from itertools import combinations
 
 import numpy as np
 import pandas as pd
 
 from pingpong.common.camera import Camera
+
+log = logging.getLogger(__name__)
 
 
 def triangulate_dlt(P: np.ndarray, pixels: np.ndarray, mask: np.ndarray, weights=None) -> np.ndarray:
@@ -153,12 +156,50 @@ def _aligned_times(tables: list[pd.DataFrame]) -> np.ndarray:
     return times
 
 
+def rescue_views(cameras: list[Camera], times: np.ndarray, px: np.ndarray, tri: dict,
+                 candidates: list[pd.DataFrame], max_reproj_px) -> np.ndarray:
+    """px (N, C, 2) with each view that the triangulation `tri` of px left out (a camera's detection refused
+    by the other views, or none) replaced by that camera's candidate nearest the point's reprojection, where
+    it lies within the camera's gate; the rest unchanged. candidates: per camera, every ball candidate its
+    detector weighed (BALL_CANDIDATES' time_ns, u, v), at frame times among `times`.
+
+    A camera's track can follow the wrong blob (a held ball, a shirt) while the others see the ball: the 2D
+    candidate consistent with their 3D point is the ball, whatever the camera's own track chose."""
+    out = px.copy()
+    gate = np.broadcast_to(np.asarray(max_reproj_px, float), (len(cameras),))
+    has_point = np.isfinite(tri["points"]).all(axis=1)
+    for c, (camera, table) in enumerate(zip(cameras, candidates, strict=True)):
+        row = np.searchsorted(times, table["time_ns"].to_numpy())
+        row = np.minimum(row, len(times) - 1)
+        on_frame = times[row] == table["time_ns"].to_numpy()
+        open_view = on_frame & has_point[row] & ~tri["used_mask"][row, c]
+        if not open_view.any():
+            continue
+        rows = row[open_view]
+        uv = table[["u", "v"]].to_numpy(float)[open_view]
+        distance = np.hypot(*(uv - camera.project(tri["points"][rows])).T)
+        order = np.lexsort((distance, rows))  # per frame, nearest first
+        first = order[np.r_[True, rows[order][1:] != rows[order][:-1]]]
+        near = first[distance[first] <= gate[c]]
+        out[rows[near], c] = uv[near]
+    return out
+
+
 def ball3d_table(cameras: list[Camera], detections: list[pd.DataFrame], max_reproj_px,
-                 min_views: int = 2) -> pd.DataFrame:
-    """The ball's 3D centre per camera frame from each camera's detections (table frame)."""
+                 min_views: int = 2, candidates: list[pd.DataFrame] | None = None) -> pd.DataFrame:
+    """The ball's 3D centre per camera frame from each camera's detections (table frame). With candidates
+    (per camera, BALL_CANDIDATES), views the detections leave out are filled by candidates that agree with
+    the others (rescue_views) and the points triangulated again."""
     times = _aligned_times(detections)
     px = np.stack([np.where(d["detected"].to_numpy()[:, None], d[["u", "v"]].to_numpy(), np.nan)
                    for d in detections], axis=1)
     tri = triangulate_robust(cameras, px, max_reproj_px, min_views)
+    if candidates is not None:
+        rescued = rescue_views(cameras, times, px, tri, candidates, max_reproj_px)
+        changed = (rescued != px).any(axis=2) & np.isfinite(rescued).all(axis=2)
+        log.info("views filled by a camera's other ball candidates: %d (per camera %s)", changed.sum(),
+                 changed.sum(axis=0).tolist())
+        if changed.any():
+            tri = triangulate_robust(cameras, rescued, max_reproj_px, min_views)
     return pd.DataFrame({"time_ns": times, **dict(zip("xyz", tri["points"].T, strict=True)),
                          "n_views": tri["n_views"], "reproj_rms_px": tri["reproj_rms_px"]})

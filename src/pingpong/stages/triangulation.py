@@ -10,7 +10,7 @@ from pingpong.perception.ball_flight import FlightRule, ball_verdict, drop_phant
 from pingpong.perception.calibration import load_cameras
 from pingpong.perception.pose3d import pose3d_table
 from pingpong.perception.scene import Scene
-from pingpong.perception.schemas import BALL3D, DETECTIONS, POSE2D, POSE3D
+from pingpong.perception.schemas import BALL3D, BALL_CANDIDATES, DETECTIONS, POSE2D, POSE3D
 from pingpong.perception.triangulation import ball3d_table, reprojection_gate_px
 
 
@@ -19,7 +19,8 @@ def main(ctx):
     all_cameras, _ = load_cameras(ctx.input.cameras)
     cameras = [next(c for c in all_cameras if c.name == name) for name in p["cams"]]
     prov = ctx.provenance()
-    ball = session_ball(cameras, [read_table(f, DETECTIONS) for f in ctx.input.detections], p)
+    ball = session_ball(cameras, [read_table(f, DETECTIONS) for f in ctx.input.detections], p,
+                        [read_table(f, BALL_CANDIDATES) for f in ctx.input.candidates])
     write_table(ball, ctx.output.ball3d, BALL3D, prov)
     pose, report = pose3d_table(cameras, [read_table(f, POSE2D) for f in ctx.input.pose2d],
                                 Scene.from_config(p["scene"]), p["association_share"], p["max_reproj_share"],
@@ -31,11 +32,14 @@ def main(ctx):
     log_pose_report(report)
 
 
-def session_ball(cameras: list, detections: list[pd.DataFrame], p: dict) -> pd.DataFrame:
-    """The session's 3D ball (BALL3D): points whose views agree (the reprojection gate), kept only on a
-    flight (pingpong.perception.ball_flight); logs the phantoms dropped and whether the session has a ball."""
+def session_ball(cameras: list, detections: list[pd.DataFrame], p: dict,
+                 candidates: list[pd.DataFrame] | None = None) -> pd.DataFrame:
+    """The session's 3D ball (BALL3D): points whose views agree (the reprojection gate; a camera's other
+    candidates fill the views its detection leaves out where they agree: triangulation.rescue_views), kept
+    only on a flight (pingpong.perception.ball_flight); logs the phantoms dropped and whether the session
+    has a ball."""
     gate = reprojection_gate_px(cameras, p["max_reproj_share"])
-    ball = ball3d_table(cameras, detections, gate, p["min_views"])
+    ball = ball3d_table(cameras, detections, gate, p["min_views"], candidates)
     agreed = int(ball["x"].notna().sum())
     ball, counts = drop_phantoms(ball, FlightRule.from_config(p["ball_flight"]))
     has_ball, verdict = ball_verdict(counts, len(ball))
