@@ -39,6 +39,11 @@ def _hsv_bgr(h, s, v) -> tuple:
 # ---------------------------------------------------------------------------- the twin
 
 
+def _track(frames):
+    """The track method's (detections, candidates) of frames, as the detection stage runs it."""
+    return ball_track.detect_stream(frames, BallDetector(), SETTINGS, ball_track.scene_for(frames))
+
+
 @pytest.fixture(scope="module")
 def twin_scored():
     """Track detections of one twin camera (tests/test_detection.py's stream: 2 rallies, 480x360, JPEG q90,
@@ -56,14 +61,15 @@ def twin_scored():
         frames.append(CameraFrame(t, jpeg))
         rows.append(row)
     truth = pd.DataFrame(rows)
-    found, candidates = ball_track.detect_stream(frames, BallDetector(), SETTINGS, ball_track.scene_for(frames))
+    found, candidates = _track(frames)
     error = np.hypot(found["u"] - truth["u"], found["v"] - truth["v"]).to_numpy()
     return found, error, truth["visibility"].to_numpy(), candidates
 
 
 def test_the_twin_ball_is_found_and_nothing_else(twin_scored):
-    # measured: 99.42 % of 2,746 visible balls (16 missed: the 1-4 frames around hits and bounces, where
-    # a track's points are too few), false detections 0.06 % of 3,340 frames; median error 0.116 px
+    # measured: 99.16 % of 2,746 visible balls (23 missed: the 1-5 frames at a flight's end by a hit or a
+    # player's body, too few for a track of their own), no false detection in 3,340 frames; median error
+    # 0.115 px
     found, error, visibility, _ = twin_scored
     visible = visibility >= VISIBLE
     hit = found["detected"].to_numpy() & (error <= FALSE_PX)
@@ -82,8 +88,8 @@ def test_every_candidate_is_recorded_with_its_reason(twin_scored, tmp_path):
     merged = found[found["detected"]].merge(kept, on="time_ns", suffixes=("", "_candidate"))
     np.testing.assert_array_equal(merged["u"], merged["u_candidate"])
     refused = set(candidates.loc[~candidates["kept"], "reason"])
-    assert refused and refused <= {"rank", "size", "colour", "lone", "short", "slow", "static", "non_ballistic",
-                                   "off_track"}
+    assert refused and refused <= {"rank", "size", "colour", "lone", "short", "slow", "static",
+                                   "non_ballistic", "off_track", "edge"}
     write_table(candidates, tmp_path / "c.parquet", BALL_CANDIDATES, Provenance.of("detection"))
     pd.testing.assert_frame_equal(read_table(tmp_path / "c.parquet", BALL_CANDIDATES), candidates)
 
@@ -162,12 +168,13 @@ def room_clip():
         cv2.ellipse(image, (int(held[0]), int(held[1] + 14)), (16, 11), 0, 0, 360, _hsv_bgr(*SKIN_HSV), -1)
         _draw_disc(image, np.array([held]), BALL_RADIUS_PX, _hsv_bgr(*BALL_HSV))
         exposure = [_flying_ball(t + s) for s in np.linspace(-EXPOSURE_S / 2, EXPOSURE_S / 2, 9)]
-        if all(p is not None for p in exposure):
+        drawn = all(p is not None for p in exposure)  # a flight's whole exposure: else no ball is drawn
+        if drawn:
             _draw_disc(image, np.array(exposure), BALL_RADIUS_PX, _hsv_bgr(*BALL_HSV))
-        flying = _flying_ball(t)
-        truth.append(flying if flying is not None else (np.nan, np.nan))
+        truth.append(_flying_ball(t) if drawn else (np.nan, np.nan))
         image += rng.normal(0, 2.0, image.shape).astype(np.float32)
-        jpeg = cv2.imencode(".jpg", np.clip(image, 0, 255).astype(np.uint8), [cv2.IMWRITE_JPEG_QUALITY, 90])[1]
+        pixels = np.clip(image, 0, 255).astype(np.uint8)
+        jpeg = cv2.imencode(".jpg", pixels, [cv2.IMWRITE_JPEG_QUALITY, 90])[1]
         frames.append(CameraFrame(int(1.7e18) + round(t * 1e9), jpeg.tobytes()))
     return frames, np.array(truth)
 
@@ -177,12 +184,14 @@ def _near(found: pd.DataFrame, uv, px: float) -> np.ndarray:
     return found["detected"].to_numpy() & (np.hypot(found["u"] - uv[:, 0], found["v"] - uv[:, 1]) <= px)
 
 
-def test_in_a_club_room_the_track_method_takes_the_flying_ball_and_refuses_the_box_and_the_held_ball(room_clip):
+def test_in_a_club_room_the_track_method_takes_the_flying_ball_and_refuses_the_box_and_held_ball(room_clip):
+    # measured: the flying ball in 76 of its 76 frames, median error 0.10 px; the held ball a candidate in
+    # all 120 frames, each refused as slow; the box never a candidate
     frames, truth = room_clip
-    found, candidates = ball_track.detect_stream(frames, BallDetector(), SETTINGS, ball_track.scene_for(frames))
+    found, candidates = _track(frames)
     flying = np.isfinite(truth).all(axis=1)
     on_ball = _near(found, truth, FALSE_PX)
-    assert on_ball[flying].mean() >= 0.9
+    assert on_ball[flying].mean() >= 0.97
     assert not (found["detected"].to_numpy() & ~on_ball).any()  # nothing else, ever
     box_centre = ((BOX[0] + BOX[2] - 1) / 2, (BOX[1] + BOX[3] - 1) / 2)
     held = np.array([_held_ball(k / FPS) for k in range(len(frames))])
@@ -195,7 +204,7 @@ def test_in_a_club_room_the_track_method_takes_the_flying_ball_and_refuses_the_b
     assert not (candidates["kept"] & at_held).any()
     # the box never moves, so it is no candidate; the held ball, where it is one, is refused for what it does
     assert not at_box.any()
-    assert set(candidates.loc[at_held, "reason"]) <= {"lone", "short", "slow", "static", "rank"}
+    assert set(candidates.loc[at_held, "reason"]) <= {"lone", "short", "slow", "static", "rank", "colour"}
 
 
 def test_in_a_club_room_the_colour_method_takes_the_box(room_clip):
@@ -276,9 +285,9 @@ def test_the_gate_grows_with_the_gap_and_the_frame_interval(gap, rate_hz):
 
 
 def test_choose_points_gives_each_frame_one_ball_from_the_best_track():
-    a = ball_track._Track([(f, 0) for f in range(0, 10)], [0.0] * 10, [(0.0, 0.0)] * 10)
-    b = ball_track._Track([(f, 1) for f in range(8, 20)], [0.0] * 12, [(0.0, 0.0)] * 12)
-    c = ball_track._Track([(f, 2) for f in range(9, 13)], [0.0] * 4, [(0.0, 0.0)] * 4)
+    a = ball_track._Track([(f, 0) for f in range(0, 10)], [0.0] * 10, [(0.0, 0.0)] * 10, [1.0] * 10)
+    b = ball_track._Track([(f, 1) for f in range(8, 20)], [0.0] * 12, [(0.0, 0.0)] * 12, [1.0] * 12)
+    c = ball_track._Track([(f, 2) for f in range(9, 13)], [0.0] * 4, [(0.0, 0.0)] * 4, [1.0] * 4)
     ball = choose_points([(a, 10.0), (b, 12.0), (c, 20.0)], 5)
     # c scores best but has 4 points; b takes 8..19, a keeps 0..7 (8 points >= 5)
     assert ball == {**{f: 0 for f in range(8)}, **{f: 1 for f in range(8, 20)}}

@@ -78,6 +78,7 @@ from pingpong.perception.detection import (
     _colour_mask,
     _fill,
     _is_seam,
+    _skin_without_core,
     _weighted_centre,
 )
 
@@ -85,6 +86,7 @@ log = logging.getLogger(__name__)
 
 TRACK_WIDTH_PX = 640  # px: the narrowest image candidates are searched on (1280x720 at 1/2)
 FIT_POINTS = 7  # a track's last points fitted with constant acceleration to predict the next
+EDGE_RUN = 3  # points in consecutive frames that a track's end beyond a gap needs (_trimmed)
 MAX_BRANCHES = 3  # candidates in one gate that each extend a track (the nearest first)
 MAX_TRACKS = 200  # live tracks kept at once (the longest first): a bound on the hypotheses
 _APART = np.ones((5, 5), np.uint8)  # a washed blob's pixels lie >= 3 px from the colour test's blobs
@@ -160,7 +162,10 @@ def frame_candidates(image: np.ndarray, reduction: int, detector: BallDetector, 
     """Candidates (u, v, area_px, score, reason) of an image decoded at 1/reduction, u, v and area in
     full-resolution pixels: reason '' for the best candidates_per_frame, 'rank' for the others, 'size' for
     moving ball-coloured blobs above the area range, 'colour' for blobs of the colour test that are a
-    red/yellow seam (detection._is_seam)."""
+    red/yellow seam (detection._is_seam) and washed blobs on skin without a ball's core
+    (detection._skin_without_core: JPEG lifts skin's saturation to 150-177 beside a hand), 'edge' for
+    blobs touching the image's border (the skin test's ring is cut there, and a ball cut by the border is
+    centred on its visible part)."""
     hsv = cv2.cvtColor(image, cv2.COLOR_BGR2HSV)
     width = image.shape[1]
     strict = _colour_mask(hsv, replace(detector, scene_contrast_min=0), width, None) & moving
@@ -179,7 +184,12 @@ def frame_candidates(image: np.ndarray, reduction: int, detector: BallDetector, 
     washed_area = detector.blur_max_area_px * (width / REFERENCE_WIDTH) ** 2
     for x, y, w, h, blob, area in _blobs(loose, min_area, washed_area):
         if hsv[y:y + h, x:x + w, 1][blob > 0].max() >= detector.blur_peak_saturation:
-            found.append((x, y, blob, area, ""))
+            found.append((x, y, blob, area, "colour" if _skin_without_core(hsv, x, y, blob, detector, width)
+                          else ""))
+    height = image.shape[0]
+    found = [(x, y, blob, area, reason or ("edge" if min(x, y) == 0 or x + blob.shape[1] == width
+                                           or y + blob.shape[0] == height else ""))
+             for x, y, blob, area, reason in found]
     return _ranked(hsv, found, reduction, detector, settings)
 
 
@@ -236,14 +246,20 @@ def stream_candidates(frames: Iterable, detector: BallDetector, settings: TrackS
 
 @dataclass
 class _Track:
-    """A hypothesis: its points as (frame, candidate index) and their times (s) and positions (px)."""
+    """A hypothesis: its points as (frame, candidate index), their times (s), positions (px) and the
+    candidates' ball-likeness (_score)."""
 
     points: list
     t: list
     uv: list
+    likeness: list
 
-    def extended(self, frame: int, index: int, t: float, uv) -> "_Track":
-        return _Track(self.points + [(frame, index)], self.t + [t], self.uv + [uv])
+    def extended(self, frame: int, index: int, t: float, uv, likeness: float) -> "_Track":
+        return _Track(self.points + [(frame, index)], self.t + [t], self.uv + [uv],
+                      self.likeness + [likeness])
+
+    def part(self, keep: slice) -> "_Track":
+        return _Track(self.points[keep], self.t[keep], self.uv[keep], self.likeness[keep])
 
     def predict(self, t: float) -> np.ndarray | None:
         """The position at time t from a constant-acceleration fit of the last FIT_POINTS points (constant
@@ -275,6 +291,7 @@ def link_tracks(times_ns: np.ndarray, candidates: list[list[tuple]], settings: T
     for frame, found in enumerate(candidates):
         t = t_s[frame]
         uv = np.array([c[:2] for c in found if not c[4]], np.float64).reshape(-1, 2)
+        likeness = [c[3] for c in found if not c[4]]
         still, extended_by_long = [], set()
         for track in live:
             if t - track.t[-1] > settings.max_gap_s:
@@ -288,13 +305,14 @@ def link_tracks(times_ns: np.ndarray, candidates: list[list[tuple]], settings: T
             if not in_gate:  # this frame shows no ball of this track (a miss, or it has ended)
                 still.append(track)
             for index in in_gate:
-                still.append(track.extended(frame, index, t, uv[index]))
+                still.append(track.extended(frame, index, t, uv[index], likeness[index]))
                 if len(track.t) >= 2:
                     extended_by_long.add(index)
-        still += [_Track([(frame, i)], [t], [uv[i]]) for i in range(len(uv)) if i not in extended_by_long]
+        still += [_Track([(frame, i)], [t], [uv[i]], [likeness[i]]) for i in range(len(uv))
+                  if i not in extended_by_long]
         live, dropped = _pruned(still)
         ended += dropped
-    return ended + live
+    return [_trimmed(track) for track in ended + live]
 
 
 def _pruned(tracks: list[_Track]) -> tuple[list[_Track], list[_Track]]:
@@ -312,9 +330,24 @@ def _pruned(tracks: list[_Track]) -> tuple[list[_Track], list[_Track]]:
         for track in group:
             before = sum(frame < start for frame, _ in track.points)
             if track is not best and before:
-                ended.append(_Track(track.points[:before], track.t[:before], track.uv[:before]))
+                ended.append(track.part(slice(before)))
     live.sort(key=lambda tr: -len(tr.points))
     return live[:MAX_TRACKS], ended + live[MAX_TRACKS:]
+
+
+def _trimmed(track: _Track) -> _Track:
+    """The track without the runs (points in consecutive frames) of fewer than EDGE_RUN points at its ends
+    that a gap parts from the rest: a gate grown over a gap takes whatever lies in it (a track carried over
+    a bounce takes the bounce's first point, or a hand beside the ball), where a followed ball has a run."""
+    frames = np.array([frame for frame, _ in track.points])
+    starts = np.concatenate([[0], np.flatnonzero(np.diff(frames) > 1) + 1, [len(frames)]])
+    runs = np.diff(starts)
+    first, last = 0, len(runs) - 1
+    while first < last and runs[first] < EDGE_RUN:
+        first += 1
+    while last > first and runs[last] < EDGE_RUN:
+        last -= 1
+    return track.part(slice(starts[first], starts[last + 1]))
 
 
 def _residual_px(track: _Track) -> float:
@@ -331,8 +364,8 @@ def _residual_px(track: _Track) -> float:
 
 
 def judge(track: _Track, settings: TrackSettings, scale: float) -> tuple[str, float]:
-    """(reason, score) of a track: reason '' for a ball's flight (score: points less the residual in gate
-    units), else why not (module docstring)."""
+    """(reason, score) of a track: reason '' for a ball's flight (score: its candidates' summed ball-likeness
+    less its residual in gate units), else why not (module docstring)."""
     if len(track.points) == 1:
         return "lone", 0.0
     if len(track.points) < settings.min_track_points:
@@ -344,7 +377,7 @@ def judge(track: _Track, settings: TrackSettings, scale: float) -> tuple[str, fl
     residual = _residual_px(track) / scale
     if residual > settings.max_residual_px:
         return "non_ballistic", 0.0
-    return "", len(track.points) - residual / settings.gate_px
+    return "", float(np.sum(track.likeness)) - residual / settings.gate_px
 
 
 def choose_points(tracks: list[tuple[_Track, float]], min_points: int) -> dict[int, int]:

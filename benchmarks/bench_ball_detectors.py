@@ -1,0 +1,109 @@
+"""Frames per second of the two ball detectors, colour (detection.detect_stream, the paper's) and track
+(ball_track.detect_stream with its scene image, as the detection stage runs it), decoding included.
+
+Each size's frames are one twin camera's JPEG frames (q90, `--rallies` rallies, 100 Hz) held in memory
+as CameraFrame (MCAP reading is left out; the stage reads the same frames from the file), or a recorded
+stream (`--stream`: any file pingpong.io.camera_streams reads, e.g. an H.264 video decoded by PyAV; its
+frames are read once into memory). The methods run `--rounds` times interleaved (colour, track, colour,
+...), each keeping its best round, as the machine is shared; OpenCV runs on one thread, as the stage pins
+it, so frames/s is per core. On the twin it also scores both against the truth (tests/test_detection.py's
+scoring: recall of visible balls within 5 px at 480 wide, scaled with the width; false: detections farther
+or with no visible ball).
+
+    PYTHONPATH=src python benchmarks/bench_ball_detectors.py [--sizes 480x360 1280x720] [--rallies 2]
+    PYTHONPATH=src python benchmarks/bench_ball_detectors.py --stream raw/sessions/s00/cam0.mcap
+"""
+
+import argparse
+import time
+
+import cv2
+import numpy as np
+import pandas as pd
+
+from pingpong.common.seeding import rng_for
+from pingpong.io.camera_streams import CameraFrame, open_camera_stream
+from pingpong.perception import ball_track, detection
+from pingpong.twin import render
+from pingpong.twin.cameras import record_camera
+from pingpong.twin.rig import make_rig
+from pingpong.twin.session import FaultRates, simulate_session
+
+VISIBLE = 0.5
+FALSE_PX_AT_480 = 5.0
+
+
+def twin_frames(rallies: int, width: int, height: int) -> tuple[list[CameraFrame], pd.DataFrame]:
+    """One camera's frames of a twin session (seed 1, camera 0) and its ball truth."""
+    truth = simulate_session(rallies, FaultRates(), rng_for(1, "bench"))
+    camera = make_rig(rng_for(1, "rig"), 4, width, height)[0]
+    rng = rng_for(1, "cam")
+    lab = render.make_lab(rng_for(1, "lab"))
+    backgrounds = render.render_backgrounds(camera, lab, rng)
+    looks = render.make_player_looks(rng, 3)
+    frames, rows = [], []
+    for t, jpeg, row in record_camera(camera, backgrounds, looks, truth.ball, truth.people, truth.paddles,
+                                      rng, 90):
+        frames.append(CameraFrame(t, jpeg))
+        rows.append(row)
+    return frames, pd.DataFrame(rows)
+
+
+def colour(frames, detector):
+    return detection.detect_stream(frames, detector)
+
+
+def track(frames, detector):
+    return ball_track.detect_stream(frames, detector, ball_track.TrackSettings(),
+                                    ball_track.scene_for(frames))[0]
+
+
+def score(found: pd.DataFrame, truth: pd.DataFrame, width: int) -> tuple[float, float]:
+    """(recall %, false %) of a detections table against the twin's truth."""
+    error = np.hypot(found["u"] - truth["u"], found["v"] - truth["v"]).to_numpy()
+    visibility = truth["visibility"].to_numpy()
+    near = found["detected"].to_numpy() & (error <= FALSE_PX_AT_480 * width / 480)
+    false = found["detected"].to_numpy() & ((visibility == 0) | ~near)
+    return 100 * near[visibility >= VISIBLE].mean(), 100 * false.mean()
+
+
+def measure(frames, truth, source: str, rounds: int) -> None:
+    detector = detection.BallDetector()
+    height, width = frames[0].decode(1)[0].shape[:2]
+    methods = {"colour": colour, "track": track}
+    best, tables = dict.fromkeys(methods, np.inf), {}
+    for _ in range(rounds):
+        for name, run in methods.items():
+            start = time.perf_counter()
+            tables[name] = run(frames, detector)
+            best[name] = min(best[name], time.perf_counter() - start)
+    n = len(frames)
+    print(f"\n{n} frames {width}x{height} ({source}), best of {rounds} interleaved rounds, one thread\n")
+    print("| method | frames/s | ms/frame | frames/s / colour's | recall % | false % |\n"
+          "|---|---:|---:|---:|---:|---:|")
+    for name, seconds in best.items():
+        recall, false = score(tables[name], truth, width) if truth is not None else (np.nan, np.nan)
+        print(f"| {name} | {n / seconds:.0f} | {1e3 * seconds / n:.2f} | {best['colour'] / seconds:.2f} | "
+              f"{recall:.2f} | {false:.3f} |")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sizes", nargs="+", default=["480x360", "1280x720"])
+    ap.add_argument("--rallies", type=int, default=2)
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--stream", help="a recorded stream instead of the twin")
+    a = ap.parse_args()
+    cv2.setNumThreads(1)  # as pingpong.common.script.pin_threads runs the stage
+    if a.stream:
+        _, frames = open_camera_stream(a.stream)
+        measure(list(frames), None, a.stream, a.rounds)
+        return
+    for size in a.sizes:
+        width, height = (int(x) for x in size.split("x"))
+        frames, truth = twin_frames(a.rallies, width, height)
+        measure(frames, truth, f"twin, {a.rallies} rallies", a.rounds)
+
+
+if __name__ == "__main__":
+    main()
