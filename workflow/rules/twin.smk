@@ -95,11 +95,18 @@ rule twin_camera:
     output:
         mcap="raw/sessions/{session}/{cam}.mcap",
         ball2d="raw/twin_truth/{session}/{cam}_ball2d.parquet",
+        # the balls other than the one in play (pingpong.twin.room), only when the room puts some in
+        **(
+            {"other_balls": "raw/twin_truth/{session}/{cam}_other_balls2d.parquet"}
+            if TWIN["room"]["second_ball"] > 0 or TWIN["room"]["floor_balls"] > 0 or TWIN["room"]["rolling_ball"]
+            else {}
+        ),
     params:
         seed=config["seed"],
         session="{session}",
         cam="{cam}",
         jpeg_quality=TWIN["jpeg_quality"],
+        room=TWIN["room"],
         code=code("twin_camera"),
     log:
         "logs/twin_camera/{session}_{cam}.log",

@@ -12,7 +12,8 @@ import pandas as pd
 
 from pingpong.common.camera import Camera
 from pingpong.frames import ROT_COLUMNS
-from pingpong.twin.render import Background, PlayerLook, encode_jpeg, frame_shapes, render_shapes
+from pingpong.twin.render import Background, BallTruth, PlayerLook, encode_jpeg, frame_shapes, render_scene
+from pingpong.twin.room import Room, exposure_gains, other_ball_positions
 from pingpong.twin.session import SIDES, ball_positions_at
 from pingpong.twin.truth import JOINT_COLUMNS
 
@@ -47,6 +48,19 @@ def record_camera(camera: Camera, backgrounds: tuple[Background, Background], lo
                   ball: pd.DataFrame, people: pd.DataFrame, paddles: pd.DataFrame, rng: np.random.Generator,
                   jpeg_quality: int) -> Iterator[tuple[int, bytes, dict]]:
     """(time_ns, JPEG, ball truth row) for every camera frame of the session, in time order."""
+    for t, jpeg, row, _ in record_room_camera(camera, backgrounds, looks, ball, people, paddles, rng, jpeg_quality):
+        yield t, jpeg, row
+
+
+def record_room_camera(camera: Camera, backgrounds: tuple[Background, Background], looks: list[PlayerLook],
+                       ball: pd.DataFrame, people: pd.DataFrame, paddles: pd.DataFrame, rng: np.random.Generator,
+                       jpeg_quality: int, room: Room = Room(), room_rng: np.random.Generator | None = None,
+                       gain_rng: np.random.Generator | None = None) -> Iterator[tuple[int, bytes, dict, list]]:
+    """record_camera's frames with the room's moving things (twin.room), and the other balls' truth rows.
+
+    room_rng: the session's room stream (the same for every camera); gain_rng: this camera's drift. With
+    the room's features off neither is used and the frames are record_camera's, bit for bit.
+    """
     times = frame_times(people)
     offsets = np.linspace(-EXPOSURE_NS / 2, EXPOSURE_NS / 2, EXPOSURE_SAMPLES).astype(np.int64)
     exposure = ball_positions_at(ball, (times[:, None] + offsets[None]).ravel())
@@ -54,20 +68,33 @@ def record_camera(camera: Camera, backgrounds: tuple[Background, Background], lo
     bodies = {p: rows[list(JOINT_COLUMNS)].to_numpy().reshape(-1, 25, 3)
               for p, rows in people.groupby("person", sort=False)}
     pads = _paddles_at(paddles, times)
+    balls_rng, lamps_rng = room_rng.spawn(2) if room_rng is not None else (None, None)
+    others = other_ball_positions(room, balls_rng, ball, times, offsets, bodies,
+                                  {p: pos for p, (pos, _) in pads.items()}, SIDES) if room.balls else {}
+    gains = exposure_gains(room, lamps_rng, gain_rng, times, EXPOSURE_NS / 1e9)
     persons = list(SIDES.values()) + ["bystander"]
     for first in range(0, len(times), SHAPE_CHUNK):
         chunk = slice(first, first + SHAPE_CHUNK)
         shapes = frame_shapes(camera, [bodies[p][chunk] for p in persons], looks,
                               [(pads[p][0][chunk], pads[p][1][chunk]) for p in SIDES.values()])
         for i, frame in enumerate(shapes, start=first):
-            yield _camera_frame(camera, backgrounds, times[i], exposure[i], frame, rng, jpeg_quality)
+            yield _camera_frame(camera, backgrounds, times[i], exposure[i], frame, rng, jpeg_quality,
+                                {name: positions[i] for name, positions in others.items()},
+                                None if gains is None else float(gains[i]))
 
 
-def _camera_frame(camera, backgrounds, t, exposure, shapes, rng, jpeg_quality) -> tuple[int, bytes, dict]:
-    balls = exposure[np.isfinite(exposure).all(axis=1)]
+def _truth_row(t: int, truth: BallTruth) -> dict:
+    return {"time_ns": int(t), "u": truth.pixel[0], "v": truth.pixel[1], "visibility": truth.visibility,
+            "radius_px": truth.radius_px}
+
+
+def _camera_frame(camera, backgrounds, t, exposure, shapes, rng, jpeg_quality, others, gain):
+    # a still ball (on the floor) is drawn from one exposure sample: the same image at a fifth of the cost
+    present = {name: p if np.ptp(p, axis=0).any() else p[:1] for name, p in others.items() if np.isfinite(p).all()}
+    balls = [exposure[np.isfinite(exposure).all(axis=1)], *present.values()]
     background = backgrounds[int((t // DISTRACTOR_PERIOD_NS) % 2)]
-    image, truth = render_shapes(background, camera, balls if len(balls) else None, shapes, rng)
-    return int(t), encode_jpeg(image, jpeg_quality), {
-        "time_ns": int(t), "u": truth.pixel[0], "v": truth.pixel[1], "visibility": truth.visibility,
-        "radius_px": truth.radius_px}
-
+    image, truths = render_scene(background, camera, [b if len(b) else None for b in balls], shapes, rng,
+                                 gain=gain)
+    other_rows = [{"time_ns": int(t), "ball": name, **dict(zip("xyz", p.mean(axis=0).tolist(), strict=True)),
+                   **_truth_row(t, truth)} for (name, p), truth in zip(present.items(), truths[1:], strict=True)]
+    return int(t), encode_jpeg(image, jpeg_quality), _truth_row(t, truths[0]), other_rows

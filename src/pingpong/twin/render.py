@@ -129,6 +129,8 @@ class Poster:
     lo: tuple[float, float]  # (x, z) of the lower left corner, m
     hi: tuple[float, float]  # and of the upper right
     hsv: tuple[float, float, float]
+    marks: tuple[tuple[float, float, float], ...] = ()  # printed dots (x, z, radius), m (twin.room's sign)
+    mark_hsv: tuple[float, float, float] = (0, 0, 0)
 
 
 @dataclass(frozen=True)
@@ -238,6 +240,8 @@ def _room_colour(o, d, lab: Lab):
         on = ((axis == 1) & (np.abs(p[:, 1] - poster.wall_y) < 1e-6) & (p[:, 0] >= x0) & (p[:, 0] <= x1)
               & (p[:, 2] >= z0) & (p[:, 2] <= z1))
         colour[on] = hsv_to_bgr(*poster.hsv)
+        for x, z, radius in poster.marks:
+            colour[on & ((p[:, 0] - x) ** 2 + (p[:, 2] - z) ** 2 <= radius**2)] = hsv_to_bgr(*poster.mark_hsv)
     return s, colour
 
 
@@ -738,21 +742,60 @@ def render_shapes(background: Background, camera: Camera, ball_positions: np.nda
                   shapes: Sequence[_Shape], rng: np.random.Generator, *,
                   noise: bool = True) -> tuple[np.ndarray, BallTruth]:
     """render_frame with the people and paddles already turned into depth-sorted shapes (frame_shapes)."""
+    image, truths = render_scene(background, camera, [ball_positions], shapes, rng, noise=noise)
+    return image, truths[0]
+
+
+def _ball_truth_and_layer(background: Background, camera: Camera, ball_positions: np.ndarray | None):
+    """(BallTruth without visibility, layer or None, camera depth of the mid-exposure centre) of a ball."""
+    if ball_positions is None or not len(ball_positions):
+        return BallTruth(np.full(2, np.nan), 0.0, 0.0), None, -np.inf
+    positions = np.asarray(ball_positions, float).reshape(-1, 3)
+    mid = positions.mean(axis=0)
+    depth = camera.depth(mid)[0]
+    truth = BallTruth(camera.project(mid)[0], 0.0, camera.K[0, 0] * BALL_RADIUS / depth if depth > 0 else 0.0)
+    return truth, _ball_layer(background, camera, positions), depth
+
+
+def _hide_behind(occluders: np.ndarray, layer, nearer) -> None:
+    """Mark in a ball's occluder mask where a nearer ball's layer covers it."""
+    x0, y0 = layer[:2]
+    nx0, ny0, _, alpha, _ = nearer
+    h, w = occluders.shape
+    ix0, iy0 = max(x0, nx0), max(y0, ny0)
+    ix1, iy1 = min(x0 + w, nx0 + alpha.shape[1]), min(y0 + h, ny0 + alpha.shape[0])
+    if ix1 > ix0 and iy1 > iy0:
+        covered = alpha[iy0 - ny0:iy1 - ny0, ix0 - nx0:ix1 - nx0] > 0
+        occluders[iy0 - y0:iy1 - y0, ix0 - x0:ix1 - x0][covered] = 255
+
+
+def render_scene(background: Background, camera: Camera, balls: Sequence[np.ndarray | None],
+                 shapes: Sequence[_Shape], rng: np.random.Generator, *, noise: bool = True,
+                 gain: float | None = None) -> tuple[np.ndarray, list[BallTruth]]:
+    """One frame with any number of balls (each (K, 3) exposure positions, or None) and a truth per ball.
+
+    Every ball is drawn at its depth among the shapes and the other balls; a ball's visibility counts
+    the shapes and balls in front of it. gain: the exposure's multiplier of every value before the
+    sensor noise (twin.room's drift and flicker; None: none, and no pass over the image).
+    """
     image = background.image.copy()
-    truth = BallTruth(np.full(2, np.nan), 0.0, 0.0)
-    layer, ball_depth = None, -np.inf
-    if ball_positions is not None and len(ball_positions):
-        positions = np.asarray(ball_positions, float).reshape(-1, 3)
-        mid = positions.mean(axis=0)
-        ball_depth = camera.depth(mid)[0]
-        truth = BallTruth(camera.project(mid)[0], 0.0,
-                          camera.K[0, 0] * BALL_RADIUS / ball_depth if ball_depth > 0 else 0.0)
-        layer = _ball_layer(background, camera, positions)
-    occluders = None
+    truths, layers, depths = zip(*(_ball_truth_and_layer(background, camera, b) for b in balls), strict=True)
+    truths = list(truths)
+    pending = sorted((i for i, layer in enumerate(layers) if layer is not None), key=lambda i: -depths[i])
+    drawn: list[tuple[int, np.ndarray]] = []  # (ball, its occluder mask), farthest first
+
+    def composite_behind(depth: float) -> None:
+        """Draw the pending balls farther than depth, farthest first."""
+        while pending and depth < depths[pending[0]]:
+            i = pending.pop(0)
+            for j, occluders in drawn:  # the balls drawn before lie behind this one
+                _hide_behind(occluders, layers[j], layers[i])
+            drawn.append((i, _composite_ball(image, layers[i])))
+
     tx0, ty0, tx1, ty1, nearest = background.table_box
     for shape in shapes:
-        if layer is not None and occluders is None and shape.depth < ball_depth:
-            occluders = _composite_ball(image, layer)
+        if pending:
+            composite_behind(shape.depth)
         shape.draw(image, shape.colour)
         # _restore_table's own first tests, here: most shapes are nearer than the table or beside it,
         # and a call per shape cost more than the test
@@ -760,19 +803,20 @@ def render_shapes(background: Background, camera: Camera, ball_positions: np.nda
             sx0, sy0, sx1, sy1 = shape.bbox
             if sx0 < tx1 and sy0 < ty1 and sx1 > tx0 and sy1 > ty0:
                 _restore_table(image, background, shape)
-        if occluders is not None and _overlaps(shape, layer[0], layer[1], *occluders.shape[::-1]):
-            shape.draw(occluders, 255, offset=layer[:2])
-    if layer is not None:
-        if occluders is None:
-            occluders = _composite_ball(image, layer)
-        x0, y0, _, alpha, unoccluded = layer
+        for i, occluders in drawn:
+            if _overlaps(shape, layers[i][0], layers[i][1], *occluders.shape[::-1]):
+                shape.draw(occluders, 255, offset=layers[i][:2])
+    composite_behind(-np.inf)
+    for i, occluders in drawn:
+        x0, y0, _, alpha, unoccluded = layers[i]
         visible = alpha * (occluders == 0)
-        h, w = alpha.shape
         inside = visible[max(0, -y0):max(0, camera.height - y0), max(0, -x0):max(0, camera.width - x0)]
-        truth = BallTruth(truth.pixel, float(min(1.0, inside.sum() / unoccluded)), truth.radius_px)
+        truths[i] = BallTruth(truths[i].pixel, float(min(1.0, inside.sum() / unoccluded)), truths[i].radius_px)
+    if gain is not None:
+        cv2.LUT(image, np.clip(np.arange(256) * gain + 0.5, 0, 255).astype(np.uint8), dst=image)
     if noise:
         add_sensor_noise(image, background, rng)
-    return image, truth
+    return image, truths
 
 
 def _composite_ball(image: np.ndarray, layer) -> np.ndarray:
