@@ -41,6 +41,6 @@ def main(ctx):
             other_rows.extend(others)
     write_table(pd.DataFrame(rows), ctx.output.ball2d, truth.BALL2D, ctx.provenance())
     if room.balls:
-        write_table(pd.DataFrame(other_rows, columns=list(truth.OTHER_BALLS2D.columns)), ctx.output.other_balls,
-                    truth.OTHER_BALLS2D, ctx.provenance())
+        table = pd.DataFrame(other_rows, columns=list(truth.OTHER_BALLS2D.columns))
+        write_table(table, ctx.output.other_balls, truth.OTHER_BALLS2D, ctx.provenance())
     logging.info("%s %s: %d frames, %d other balls' rows", p["session"], p["cam"], len(rows), len(other_rows))

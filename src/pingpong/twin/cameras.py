@@ -13,7 +13,7 @@ import pandas as pd
 from pingpong.common.camera import Camera
 from pingpong.frames import ROT_COLUMNS
 from pingpong.twin.render import Background, BallTruth, PlayerLook, encode_jpeg, frame_shapes, render_scene
-from pingpong.twin.room import Room, exposure_gains, other_ball_positions
+from pingpong.twin.room import NO_ROOM, Room, exposure_gains, other_ball_positions
 from pingpong.twin.session import SIDES, ball_positions_at
 from pingpong.twin.truth import JOINT_COLUMNS
 
@@ -48,14 +48,19 @@ def record_camera(camera: Camera, backgrounds: tuple[Background, Background], lo
                   ball: pd.DataFrame, people: pd.DataFrame, paddles: pd.DataFrame, rng: np.random.Generator,
                   jpeg_quality: int) -> Iterator[tuple[int, bytes, dict]]:
     """(time_ns, JPEG, ball truth row) for every camera frame of the session, in time order."""
-    for t, jpeg, row, _ in record_room_camera(camera, backgrounds, looks, ball, people, paddles, rng, jpeg_quality):
+    frames = record_room_camera(camera, backgrounds, looks, ball, people, paddles, rng, jpeg_quality)
+    for t, jpeg, row, _ in frames:
         yield t, jpeg, row
 
 
+RoomFrame = tuple[int, bytes, dict, list]  # time_ns, JPEG, ball truth row, other balls' truth rows
+
+
 def record_room_camera(camera: Camera, backgrounds: tuple[Background, Background], looks: list[PlayerLook],
-                       ball: pd.DataFrame, people: pd.DataFrame, paddles: pd.DataFrame, rng: np.random.Generator,
-                       jpeg_quality: int, room: Room = Room(), room_rng: np.random.Generator | None = None,
-                       gain_rng: np.random.Generator | None = None) -> Iterator[tuple[int, bytes, dict, list]]:
+                       ball: pd.DataFrame, people: pd.DataFrame, paddles: pd.DataFrame,
+                       rng: np.random.Generator, jpeg_quality: int, room: Room = NO_ROOM,
+                       room_rng: np.random.Generator | None = None,
+                       gain_rng: np.random.Generator | None = None) -> Iterator[RoomFrame]:
     """record_camera's frames with the room's moving things (twin.room), and the other balls' truth rows.
 
     room_rng: the session's room stream (the same for every camera); gain_rng: this camera's drift. With
@@ -90,11 +95,13 @@ def _truth_row(t: int, truth: BallTruth) -> dict:
 
 def _camera_frame(camera, backgrounds, t, exposure, shapes, rng, jpeg_quality, others, gain):
     # a still ball (on the floor) is drawn from one exposure sample: the same image at a fifth of the cost
-    present = {name: p if np.ptp(p, axis=0).any() else p[:1] for name, p in others.items() if np.isfinite(p).all()}
+    present = {name: p if np.ptp(p, axis=0).any() else p[:1]
+               for name, p in others.items() if np.isfinite(p).all()}
     balls = [exposure[np.isfinite(exposure).all(axis=1)], *present.values()]
     background = backgrounds[int((t // DISTRACTOR_PERIOD_NS) % 2)]
     image, truths = render_scene(background, camera, [b if len(b) else None for b in balls], shapes, rng,
                                  gain=gain)
     other_rows = [{"time_ns": int(t), "ball": name, **dict(zip("xyz", p.mean(axis=0).tolist(), strict=True)),
-                   **_truth_row(t, truth)} for (name, p), truth in zip(present.items(), truths[1:], strict=True)]
+                   **_truth_row(t, truth)}
+                  for (name, p), truth in zip(present.items(), truths[1:], strict=True)]
     return int(t), encode_jpeg(image, jpeg_quality), _truth_row(t, truths[0]), other_rows

@@ -19,6 +19,10 @@ has a principled threshold, roughly H in [6, 19], S >= 150, V >= 110:
   paddle handle  H 15, S 100, V 160: rejected by S; red rubber H 0, S 210, V 165: rejected by H
   backdrop       H 75 (blue-green, so anti-aliased red-on-backdrop edges stay dull instead of
                  turning orange), table top H 95, barriers H 115, floor grey.
+With config twin.room (pingpong.twin.room, off by default) a club room adds look-alikes inside or at the
+edge of that window: wooden boxes H 13, S 178, V 112 (sides) / 150 (top); a banner's ball-orange dots
+H 12, S 220, V 220; the bystander's orange shirt H 14, S 185, V 175; balls of the ball's own colour (held,
+on the floor: render_scene draws any number); and a gain on every value per frame (drift, flicker).
 Anti-aliased edges and JPEG blend these with their surroundings: isolated 1-2 px blobs can pass
 the thresholds at red/skin edges, so take the largest blob. The ball is 3-4 px across at 480x360;
 write JPEG with full-resolution chroma (encode_jpeg's default "444"), since 4:2:0 leaves only
@@ -811,7 +815,8 @@ def render_scene(background: Background, camera: Camera, balls: Sequence[np.ndar
         x0, y0, _, alpha, unoccluded = layers[i]
         visible = alpha * (occluders == 0)
         inside = visible[max(0, -y0):max(0, camera.height - y0), max(0, -x0):max(0, camera.width - x0)]
-        truths[i] = BallTruth(truths[i].pixel, float(min(1.0, inside.sum() / unoccluded)), truths[i].radius_px)
+        truths[i] = BallTruth(truths[i].pixel, float(min(1.0, inside.sum() / unoccluded)),
+                              truths[i].radius_px)
     if gain is not None:
         cv2.LUT(image, np.clip(np.arange(256) * gain + 0.5, 0, 255).astype(np.uint8), dst=image)
     if noise:

@@ -15,7 +15,7 @@ PEOPLE = Schema("twin_people", 1, ("time_ns", "person", *JOINT_COLUMNS))
 PADDLES = Schema("twin_paddles", 1, ("time_ns", "player", "px", "py", "pz", *ROT_COLUMNS))
 RIG = Schema("twin_rig", 1)
 BALL2D = Schema("twin_ball2d", 1, ("time_ns", "u", "v", "visibility", "radius_px"))
-# the balls other than the one in play (twin.room): per frame and ball, its mid-exposure centre (table frame, m)
-# and what a perfect detector would report of it; written only when config twin.room puts such balls in
+# the balls other than the one in play (twin.room): per frame and ball, its mid-exposure centre (table
+# frame, m) and what a perfect detector would report of it; written only when twin.room puts such balls in
 OTHER_BALLS2D = Schema("twin_other_balls2d", 1, ("time_ns", "ball", "x", "y", "z", "u", "v", "visibility",
                                                  "radius_px"))
