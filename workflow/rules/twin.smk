@@ -95,7 +95,8 @@ rule twin_camera:
     output:
         mcap="raw/sessions/{session}/{cam}.mcap",
         ball2d="raw/twin_truth/{session}/{cam}_ball2d.parquet",
-        # the balls other than the one in play (pingpong.twin.room), only when the room puts some in
+        # the balls other than the one in play, only when the room puts some in: pingpong.twin.room's
+        # Room.balls, not imported (twin.render would load OpenCV at every Snakemake start)
         **(
             {"other_balls": "raw/twin_truth/{session}/{cam}_other_balls2d.parquet"}
             if TWIN["room"]["second_ball"] > 0 or TWIN["room"]["floor_balls"] > 0 or TWIN["room"]["rolling_ball"]
