@@ -10,6 +10,7 @@ import cv2
 import numpy as np
 import pandas as pd
 import pytest
+import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from workflow_util import ROOT
@@ -22,8 +23,8 @@ from pingpong.perception import ball_track, detection
 from pingpong.perception.ball_track import TrackSettings, choose_points, judge, link_tracks
 from pingpong.perception.detection import BallDetector
 from pingpong.perception.schemas import BALL_CANDIDATES
-from pingpong.twin import render
-from pingpong.twin.cameras import record_camera
+from pingpong.twin import render, room
+from pingpong.twin.cameras import record_camera, record_room_camera
 from pingpong.twin.rig import make_rig
 from pingpong.twin.session import FaultRates, simulate_session
 
@@ -92,6 +93,37 @@ def test_every_candidate_is_recorded_with_its_reason(twin_scored, tmp_path):
                                    "non_ballistic", "off_track", "edge"}
     write_table(candidates, tmp_path / "c.parquet", BALL_CANDIDATES, Provenance.of("detection"))
     pd.testing.assert_frame_equal(read_table(tmp_path / "c.parquet", BALL_CANDIDATES), candidates)
+
+
+def test_in_the_harder_twin_the_track_method_finds_the_ball_in_play_where_the_colour_method_does_not():
+    # twin.room (config/twin_room.yaml) on the far camera that sees the server from the front
+    # (test_twin_room's camera 2), 2 rallies at 480x360. Measured: track recall 97.24 %, false 0.33 % (the
+    # held second ball); colour recall 0, a distractor in every frame. Issue 49's bar is 99 % recall: not
+    # met here (the module docstring says which balls are missed), so this holds the measured level.
+    seed, features = 5, room.Room.from_config(
+        yaml.safe_load((ROOT / "config" / "twin_room.yaml").read_text())["twin"]["room"])
+    session = simulate_session(2, FaultRates(), rng_for(seed, "session"))
+    camera = make_rig(rng_for(seed, "rig"), 4, 480, 360)[2]
+    lab = room.room_lab(render.make_lab(rng_for(seed, "lab")), features, rng_for(seed, "room"))
+    rng = rng_for(seed, "camera")
+    backgrounds = render.render_backgrounds(camera, lab, rng)
+    looks = room.dress_bystander(render.make_player_looks(rng, 3), features)
+    frames, rows = [], []
+    stream = record_room_camera(camera, backgrounds, looks, session.ball, session.people, session.paddles,
+                                rng, 90, features, rng_for(seed, "room", "session"),
+                                rng_for(seed, "room", "camera"))
+    for t, jpeg, row, _ in stream:
+        frames.append(CameraFrame(t, jpeg))
+        rows.append(row)
+    truth = pd.DataFrame(rows)
+    visibility = truth["visibility"].to_numpy()
+    for found, least_recall, most_false in ((_track(frames)[0], 0.96, 0.005),
+                                            (detection.detect_stream(frames, BallDetector()), 0.0, 1.0)):
+        error = np.hypot(found["u"] - truth["u"], found["v"] - truth["v"]).to_numpy()
+        hit = found["detected"].to_numpy() & (error <= FALSE_PX)
+        false = found["detected"].to_numpy() & ((visibility == 0) | ~(error <= FALSE_PX))
+        assert least_recall <= hit[visibility >= VISIBLE].mean() and false.mean() <= most_false
+    assert hit[visibility >= VISIBLE].mean() < 0.1  # the colour method's
 
 
 # ---------------------------------------------------------------------------- a club room, no green screen
@@ -230,9 +262,10 @@ def _as_candidates(uv_per_frame) -> list[list[tuple]]:
     return [[(u, v, 10, 0.9, "") for u, v in frame] for frame in uv_per_frame]
 
 
+# px/s and px/s^2 (downwards) at 480 wide: the twin's balls move 150-600 px/s and fall at ~1,000 px/s^2 there
 flights = dict(rate_hz=st.sampled_from([30.0, 60.0, 100.0]),
                speed=st.floats(300, 2500), angle=st.floats(0, 2 * np.pi),
-               accel=st.floats(-2000, 2000))
+               accel=st.floats(2 * SETTINGS.min_fall_px_s2 * 480 / 1440, 3000))
 
 
 @settings(max_examples=40, deadline=None)
@@ -268,6 +301,11 @@ def test_a_track_is_judged_by_its_speed_and_fit(rate_hz, speed, angle, accel):
         longest = max(tracks, key=lambda tr: len(tr.points))
         assert len(longest.points) == n
         assert judge(longest, SETTINGS, SCALE)[0] == expected
+    # the same path without falling (a ball carried by a hand) is no flight
+    times, uv = _flight(rate_hz, n, speed * direction, (0.0, 0.0))
+    longest = max(link_tracks(times, _as_candidates([[p] for p in uv]), SETTINGS, SCALE),
+                  key=lambda tr: len(tr.points))
+    assert judge(longest, SETTINGS, SCALE)[0] == "non_ballistic"
     # a zigzag of the same speed (a hand shaking) is no constant-acceleration path
     times, uv = _flight(rate_hz, n, speed * direction, (0.0, accel))
     uv = uv + np.outer((-1.0) ** np.arange(n), [0, 3.0 * SCALE * SETTINGS.max_residual_px])
