@@ -101,12 +101,12 @@ camera 2 and the club-room clip.
 
 Cost (benchmarks/bench_ball_detectors.py, one thread, JPEG q90 frames in memory, decoding included, the
 stage's scene image and the offline linking too; 1,494 twin frames, best of 3 interleaved rounds on the
-shared 2-core machine at load ~3-6): 1280x720, 181 frames/s (5.5 ms a frame: the 1/2 decode 3.2-3.5
-ms, the masks and blobs on 640x360 1.3-1.9 ms, the scene image's 25 full decodes 0.85 ms a frame of this
-short stream, linking and judging 0.2 ms), 0.48 of the colour method's 380 (which
-decodes only its window's rows while it tracks the ball); 480x360, 351 frames/s (2.85 ms), 0.24 of
-colour's 1,442. Issue 49's bar is 100 frames/s per core at 1280x720 with decoding. An H.264 video is
-decoded whole by PyAV and shrunk (io.camera_streams.VideoFrame): not measured here (`--stream`).
+shared 2-core machine at load ~4): 1280x720, 162 frames/s (6.2 ms a frame: the 1/2 decode 3.2-3.5 ms,
+the masks and blobs on 640x360 1.3-1.9 ms, the scene image's 25 full decodes 0.85 ms a frame of this
+short stream, linking and judging 0.2 ms), 0.55 of the colour method's 293 (which decodes only its
+window's rows while it tracks the ball); 480x360, 325 frames/s (3.1 ms), 0.23 of colour's 1,423. Issue
+49's bar is 100 frames/s per core at 1280x720 with decoding. An H.264 video is decoded whole by PyAV and
+shrunk (io.camera_streams.VideoFrame): not measured here.
 
 Failure modes (by construction): a ball that rests or moves slower than min_speed_px_s is never
 reported (the ball in play moves); a ball in front of a background of its own colour differs too little
