@@ -40,8 +40,8 @@ BALL_CANDIDATES table (every candidate weighed, kept or the reason it was refuse
    the mean of the blob's CORE_PX highest values of the detector's centre channel, an orange ball's
    saturation, over 255, times its fill of its moment ellipse, detection._fill, at most 1: the twin's
    ball 0.7-0.95, skin 0.2-0.6) times the share of its pixels that differ from the previous frame by
-   motion_min (`_fresh_share`: a flying ball leaves its own place each frame, slowly moving orange
-   clothing mostly does not) are linked ('rank' for the others), each at its sub-pixel centre by
+   motion_min (`_fresh_share`, on the blobs' boxes of frames with more blobs than the cap: a flying ball
+   leaves its own place each frame, slowly moving orange clothing mostly does not) are linked ('rank' for the others), each at its sub-pixel centre by
    detection._weighted_centre on the reduced image, in full-resolution pixels. Ranked by likeness alone,
    the bystander's shirt crowded a fast ball out of every other frame (twin.room seed 5 camera 2:
    recall 98.42 -> 98.92 %, false 0.36 -> 0.18 %; held-out seed 6 cameras 0 and 2 false 1.27 -> 0.42 and
@@ -121,8 +121,14 @@ stage's scene image and the offline linking too; 1,494 twin frames, best of 3 in
 shared 2-core machine at load ~4): 1280x720, 162 frames/s (6.2 ms a frame: the 1/2 decode 3.2-3.5 ms,
 the masks and blobs on 640x360 1.3-1.9 ms, the scene image's 25 full decodes 0.85 ms a frame of this
 short stream, linking and judging 0.2 ms), 0.55 of the colour method's 293 (which decodes only its
-window's rows while it tracks the ball); 480x360, 325 frames/s (3.1 ms), 0.23 of colour's 1,423. Issue
-49's bar is 100 frames/s per core at 1280x720 with decoding. An H.264 video is decoded whole by PyAV and
+window's rows while it tracks the ball); 480x360, 325 frames/s (3.1 ms), 0.23 of colour's 1,423. With
+`grown` and the fresh ranking (0054170 and after, the same command): 1280x720 168 frames/s, 0.49 of
+colour's 344; 480x360 304 frames/s, 0.25 of colour's 1,239 (the machine busier than before: colour
+fell too). Where 480x360's time goes (cProfile of detect_stream on the twin's camera 0, 1,500 frames,
+5.4 s): JPEG decoding 28 %, the HSV and grey conversions 9 %, the colour tests' inRange 8 %, blobs
+(findContours, drawContours, _blobs) 14 %, the rest numpy and Python per blob; so the colour test
+restricted to the moving mask's boxes could save at most ~a quarter. Issue 49's bar is 100 frames/s per
+core at 1280x720 with decoding. An H.264 video is decoded whole by PyAV and
 shrunk (io.camera_streams.VideoFrame): not measured here.
 
 Failure modes (by construction): a ball that rests or moves slower than min_speed_px_s is never
@@ -233,7 +239,7 @@ def _score(hsv: np.ndarray, x: int, y: int, blob: np.ndarray, channel: int) -> f
 
 
 def frame_candidates(image: np.ndarray, reduction: int, detector: BallDetector, moving: np.ndarray,
-                     settings: TrackSettings, fresh: np.ndarray | None = None) -> list[tuple]:
+                     settings: TrackSettings, previous: np.ndarray | None = None) -> list[tuple]:
     """Candidates (u, v, area_px, score, reason) of an image decoded at 1/reduction, u, v and area in
     full-resolution pixels: reason '' for the best candidates_per_frame, 'rank' for the others, 'size' for
     moving ball-coloured blobs above the area range, 'colour' for blobs of the colour test that are a
@@ -265,19 +271,23 @@ def frame_candidates(image: np.ndarray, reduction: int, detector: BallDetector, 
     found = [(x, y, blob, area, reason or ("edge" if min(x, y) == 0 or x + blob.shape[1] == width
                                            or y + blob.shape[0] == height else ""))
              for x, y, blob, area, reason in found]
-    return _ranked(hsv, found, reduction, detector, settings, fresh)
+    if previous is not None and sum(not reason for *_, reason in found) > settings.candidates_per_frame:
+        found = [(x, y, blob, area, reason, _fresh_share(image, previous, x, y, blob, settings.motion_min))
+                 for x, y, blob, area, reason in found]  # the cap chooses: rank by motion too
+    else:
+        found = [(*blob, 1.0) for blob in found]
+    return _ranked(hsv, found, reduction, detector, settings)
 
 
-def _ranked(hsv, found, reduction: int, detector: BallDetector, settings: TrackSettings,
-            fresh: np.ndarray | None = None) -> list[tuple]:
-    """frame_candidates' rows of its blobs (x, y, blob, area, reason): the best candidates_per_frame by
-    _score, centred by detection._weighted_centre, and the others; in full-resolution pixels."""
+def _ranked(hsv, found, reduction: int, detector: BallDetector, settings: TrackSettings) -> list[tuple]:
+    """frame_candidates' rows of its blobs (x, y, blob, area, reason, share moving since the previous
+    frame): the best candidates_per_frame by _score times that share, and the others ranked out
+    ('rank'), centred by detection._weighted_centre; the rest; in full-resolution pixels."""
     offset = (reduction - 1) / 2  # a reduced pixel averages reduction x reduction full ones: their centre
-    scored = sorted(((_score(hsv, x, y, blob, detector.centre_channel), x, y, blob, area, reason)
-                     for x, y, blob, area, reason in found),
-                    key=lambda c: (c[5] != "", -c[0] * _fresh_share(fresh, c[1], c[2], c[3])))
+    scored = sorted(((_score(hsv, x, y, blob, detector.centre_channel), x, y, blob, area, reason, fresh)
+                     for x, y, blob, area, reason, fresh in found), key=lambda c: (c[5] != "", -c[0] * c[6]))
     rows = []
-    for rank, (score, x, y, blob, area, reason) in enumerate(scored):
+    for rank, (score, x, y, blob, area, reason, _) in enumerate(scored):
         if not reason and rank >= settings.candidates_per_frame:
             reason = "rank"
         u, v = _weighted_centre(hsv, x, y, blob, detector) if _usable(reason) else \
@@ -293,13 +303,14 @@ def _usable(reason: str) -> bool:
     return reason in ("", "rank")
 
 
-def _fresh_share(fresh: np.ndarray | None, x: int, y: int, blob: np.ndarray) -> float:
-    """The share of a blob's pixels that differ from the previous frame (`fresh`, a 0/255 mask; 1 without
-    one): a flying ball leaves its own place each frame, slow clothing mostly does not."""
-    if fresh is None:
-        return 1.0
-    return float(np.count_nonzero(fresh[y:y + blob.shape[0], x:x + blob.shape[1]][blob > 0])) / \
-        max(np.count_nonzero(blob), 1)
+def _fresh_share(image: np.ndarray, previous: np.ndarray, x: int, y: int, blob: np.ndarray,
+                 threshold: int) -> float:
+    """The share of a blob's pixels that differ from the previous frame's by `threshold` (grey level of the
+    absolute difference, as Background.moving's): a flying ball leaves its own place each frame, slowly
+    moving clothing mostly does not."""
+    box = np.s_[y:y + blob.shape[0], x:x + blob.shape[1]]
+    difference = cv2.cvtColor(cv2.absdiff(image[box], previous[box]), cv2.COLOR_BGR2GRAY)
+    return float(np.count_nonzero((difference >= threshold) & (blob > 0))) / max(np.count_nonzero(blob), 1)
 
 
 def stream_candidates(frames: Iterable, detector: BallDetector, settings: TrackSettings,
@@ -329,10 +340,7 @@ def stream_candidates(frames: Iterable, detector: BallDetector, settings: TrackS
                     cv2.resize(scene, shape[1::-1], interpolation=cv2.INTER_AREA)
                 background = Background(start, settings.background_s)
             moving = background.moving(image, frame.time_ns, settings.motion_min)
-            fresh = None if previous is None else cv2.threshold(cv2.cvtColor(
-                cv2.absdiff(image, previous), cv2.COLOR_BGR2GRAY), settings.motion_min - 1, 255,
-                cv2.THRESH_BINARY)[1]
-            found = frame_candidates(image, reduction, detector, moving, settings, fresh)
+            found = frame_candidates(image, reduction, detector, moving, settings, previous)
             previous = image
         times.append(frame.time_ns)
         decoded.append(not reason and image is not None)
