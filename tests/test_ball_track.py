@@ -303,6 +303,12 @@ def test_a_track_is_judged_by_its_speed_and_fit(rate_hz, speed, angle, accel):
         longest = max(tracks, key=lambda tr: len(tr.points))
         assert len(longest.points) == n
         assert judge(longest, SETTINGS, SCALE)[0] == expected
+    # a slow toss up to its apex and down, falling at 5 min_fall_px_s2 (its median speed below min_speed_px_s:
+    # the track's median speed refused it) is a flight
+    times, uv = _flight(rate_hz, n, (0.0, -0.5 * slowest), (0.0, 5 * SETTINGS.min_fall_px_s2 * SCALE))
+    longest = max(link_tracks(times, _as_candidates([[p] for p in uv]), SETTINGS, SCALE),
+                  key=lambda tr: len(tr.points))
+    assert judge(longest, SETTINGS, SCALE)[0] == ""
     # the same path without falling (a ball carried by a hand) is no flight
     times, uv = _flight(rate_hz, n, speed * direction, (0.0, 0.0))
     longest = max(link_tracks(times, _as_candidates([[p] for p in uv]), SETTINGS, SCALE),
