@@ -20,33 +20,13 @@ import time
 import cv2
 import numpy as np
 import pandas as pd
+from bench_detection import twin_frames  # the same stream: seed 1, camera 0
 
-from pingpong.common.seeding import rng_for
-from pingpong.io.camera_streams import CameraFrame, open_camera_stream
+from pingpong.io.camera_streams import open_camera_stream
 from pingpong.perception import ball_track, detection
-from pingpong.twin import render
-from pingpong.twin.cameras import record_camera
-from pingpong.twin.rig import make_rig
-from pingpong.twin.session import FaultRates, simulate_session
 
 VISIBLE = 0.5
 FALSE_PX_AT_480 = 5.0
-
-
-def twin_frames(rallies: int, width: int, height: int) -> tuple[list[CameraFrame], pd.DataFrame]:
-    """One camera's frames of a twin session (seed 1, camera 0) and its ball truth."""
-    truth = simulate_session(rallies, FaultRates(), rng_for(1, "bench"))
-    camera = make_rig(rng_for(1, "rig"), 4, width, height)[0]
-    rng = rng_for(1, "cam")
-    lab = render.make_lab(rng_for(1, "lab"))
-    backgrounds = render.render_backgrounds(camera, lab, rng)
-    looks = render.make_player_looks(rng, 3)
-    frames, rows = [], []
-    for t, jpeg, row in record_camera(camera, backgrounds, looks, truth.ball, truth.people, truth.paddles,
-                                      rng, 90):
-        frames.append(CameraFrame(t, jpeg))
-        rows.append(row)
-    return frames, pd.DataFrame(rows)
 
 
 def colour(frames, detector):

@@ -10,6 +10,7 @@ import cv2
 import numpy as np
 import pandas as pd
 import pytest
+import twin_util
 import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -24,7 +25,7 @@ from pingpong.perception.ball_track import TrackSettings, choose_points, judge, 
 from pingpong.perception.detection import BallDetector
 from pingpong.perception.schemas import BALL_CANDIDATES
 from pingpong.twin import render, room
-from pingpong.twin.cameras import record_camera, record_room_camera
+from pingpong.twin.cameras import record_room_camera
 from pingpong.twin.rig import make_rig
 from pingpong.twin.session import FaultRates, simulate_session
 
@@ -49,19 +50,7 @@ def _track(frames):
 def twin_scored():
     """Track detections of one twin camera (tests/test_detection.py's stream: 2 rallies, 480x360, JPEG q90,
     100 Hz), their distance to the truth (px), the truth's visibility, and the candidates table."""
-    seed = 5
-    truth = simulate_session(2, FaultRates(), rng_for(seed, "session"))
-    camera = make_rig(rng_for(seed, "rig"), 4, 480, 360)[0]
-    rng = rng_for(seed, "camera")
-    lab = render.make_lab(rng_for(seed, "lab"))
-    background = render.render_background(camera, lab, rng, intermittent=True)
-    looks = render.make_player_looks(rng, 3)
-    frames, rows = [], []
-    for t, jpeg, row in record_camera(camera, (background, background), looks, truth.ball, truth.people,
-                                      truth.paddles, rng, 90):
-        frames.append(CameraFrame(t, jpeg))
-        rows.append(row)
-    truth = pd.DataFrame(rows)
+    frames, truth = twin_util.twin_stream(5, 2, 480, 360)
     found, candidates = _track(frames)
     error = np.hypot(found["u"] - truth["u"], found["v"] - truth["v"]).to_numpy()
     return found, error, truth["visibility"].to_numpy(), candidates

@@ -13,6 +13,7 @@ import cv2
 import numpy as np
 import pandas as pd
 import pytest
+import twin_util
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from workflow_util import ROOT
@@ -20,7 +21,6 @@ from workflow_util import ROOT
 import pingpong.perception.detection as detection
 from pingpong.common.artifacts import Provenance, read_table, write_table
 from pingpong.common.config import validate_config
-from pingpong.common.seeding import rng_for
 from pingpong.io.camera_streams import CameraFrame
 from pingpong.io.jpeg import decode_jpeg
 from pingpong.perception.detection import (
@@ -32,9 +32,6 @@ from pingpong.perception.detection import (
 )
 from pingpong.perception.schemas import DETECTIONS
 from pingpong.twin import render
-from pingpong.twin.cameras import record_camera
-from pingpong.twin.rig import make_rig
-from pingpong.twin.session import FaultRates, simulate_session
 
 VISIBLE = 0.5  # visibility from which a ball counts as visible (module docstring)
 FALSE_PX = 5.0  # a detection further than this from the truth is a false detection
@@ -47,23 +44,8 @@ COLOUR_TEST_ALONE = replace(BallDetector(), blur_peak_saturation=256, track_back
 
 @pytest.fixture(scope="module")
 def twin_stream():
-    """One camera's frames (CameraFrame, JPEG) of a 2-rally twin session (~900 frames, 480x360, q90) and
-    its ball truth."""
-    seed = 5
-    truth = simulate_session(2, FaultRates(), rng_for(seed, "session"))
-    camera = make_rig(rng_for(seed, "rig"), 4, WIDTH, HEIGHT)[0]
-    rng = rng_for(seed, "camera")
-    lab = render.make_lab(rng_for(seed, "lab"))
-    # one background, with the sometimes-present ball bucket: a session this short stays in the first
-    # of the twin's 20 s distractor periods anyway, and rendering the lab twice would double the setup
-    background = render.render_background(camera, lab, rng, intermittent=True)
-    looks = render.make_player_looks(rng, 3)
-    frames, rows = [], []
-    for t, jpeg, row in record_camera(camera, (background, background), looks, truth.ball, truth.people,
-                                      truth.paddles, rng, 90):
-        frames.append(CameraFrame(t, jpeg))
-        rows.append(row)
-    return frames, pd.DataFrame(rows)
+    """One camera's frames of a 2-rally twin session (~900 frames, 480x360, q90) and its ball truth."""
+    return twin_util.twin_stream(5, 2, WIDTH, HEIGHT)
 
 
 @pytest.fixture(scope="module")
