@@ -41,7 +41,8 @@ BALL_CANDIDATES table (every candidate weighed, kept or the reason it was refuse
    saturation, over 255, times its fill of its moment ellipse, detection._fill, at most 1: the twin's
    ball 0.7-0.95, skin 0.2-0.6) times the share of its pixels that differ from the previous frame by
    motion_min (`_fresh_share`, on the blobs' boxes of frames with more blobs than the cap: a flying ball
-   leaves its own place each frame, slowly moving orange clothing mostly does not) are linked ('rank' for the others), each at its sub-pixel centre by
+   leaves its own place each frame, slowly moving orange clothing mostly does not) are linked ('rank' for
+   the others), each at its sub-pixel centre by
    detection._weighted_centre on the reduced image, in full-resolution pixels. Ranked by likeness alone,
    the bystander's shirt crowded a fast ball out of every other frame (twin.room seed 5 camera 2:
    recall 98.42 -> 98.92 %, false 0.36 -> 0.18 %; held-out seed 6 cameras 0 and 2 false 1.27 -> 0.42 and
@@ -68,7 +69,8 @@ BALL_CANDIDATES table (every candidate weighed, kept or the reason it was refuse
    min_speed_px_s refused held-out twin.room seed 6 camera 3's slow serve toss whole (recall 91.45 ->
    99.69 %) and the tiny run's flights of 2-4 m/s along the camera axis (at 02f9b33, 349 / 432 / 809
    frames of cameras 0-2 refused 'slow', the lead's measurement); a held share of 0.5 let a hidden
-   ball's jitter in (falls -5,800..2,800 over its 9 windows, 4 held: false 0 -> 0.98 %). min_speed_px_s 100 rather than 300, since min_fall_px_s2 refuses
+   ball's jitter in (falls -5,800..2,800 over its 9 windows, 4 held: false 0 -> 0.98 %). min_speed_px_s
+   100 rather than 300, since min_fall_px_s2 refuses
    the held ball: on the tiny run with twin.room (config/test/tiny.yaml config/twin_room.yaml, cameras
    0-2) recall 95.7 / 96.3 / 96.6 -> 97.0 / 99.0 / 98.5 %, false 0 / 0.09 / 0.23 -> 0.20 / 0.09 / 0.28 %
    (at 02f9b33, judged by the track's median speed, the lead's: 94.1 / 93.6 / 86.5 % at 300; 98.2 /
@@ -135,7 +137,8 @@ farther than 5 px from the ball or with no ball visible; the colour method besid
 - bench_ball_detectors.py's streams (seed 1, the ball bucket's backgrounds): 480x360 recall 99.80 %,
   false 0 (colour 100 %, 0); 1280x720 99.71 %, false 0 (colour 100 %, 0).
 Measured by calling detect_stream on streams rendered as tests/test_detection.py's fixture and
-test_ball_track.py's twin.room test do (the session, rig and room of `seed`, one camera, 480x360); tests/test_ball_track.py holds the twin's camera 0, twin.room's
+test_ball_track.py's twin.room test do (the session, rig and room of `seed`, one camera, 480x360);
+tests/test_ball_track.py holds the twin's camera 0, twin.room's
 camera 2 and the club-room clip.
 - a 1280x720 30 fps club-room clip (tests/test_ball_track.py: a plain room, a static orange-brown box at
   V 116, a ball held in a hand moving 50 px/s, a ballistic ball blurred over 1/60 s): the flying ball in
@@ -552,8 +555,9 @@ def grown(ball: dict[int, int], candidates: list[list[tuple]], times_ns: np.ndar
     for run in runs:
         for step in (1, -1):
             end = [int(f) for f in (run if step == 1 else run[::-1])[-FIT_POINTS:]]
+            chosen = [candidates[f][ball[f]] for f in end]
             track = _Track([(f, ball[f]) for f in end], [t_s[f] for f in end],
-                           [candidates[f][ball[f]][:2] for f in end], [candidates[f][ball[f]][3] for f in end])
+                           [c[:2] for c in chosen], [c[3] for c in chosen])
             frame = end[-1] + step
             while 0 <= frame < len(candidates) and frame not in ball:
                 usable = [c for c in candidates[frame] if _usable(c[4])]
