@@ -23,7 +23,7 @@ def _frames(ctx):
 
 def _scene_image(ctx):
     """The stream's scene image (BGR), or None where none of its sampled frames decodes."""
-    image = detection.scene_image(_frames(ctx), detection.SCENE_EVERY, detection.SCENE_FRAMES)
+    image = ball_track.scene_for(_frames(ctx))
     logging.info("%s: the scene image from every %dth frame, up to %d", ctx.input.stream,
                  detection.SCENE_EVERY, detection.SCENE_FRAMES)
     return image
