@@ -58,7 +58,7 @@ paper-scale: setup
 		--configfile $(PAPER_SCALE_CONFIGS)
 
 test: $(VENV)/.installed-test
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q --durations=25  # the slowest tests listed: CI time is watched
 
 lint: $(VENV)/.installed-test
 	$(BIN)/ruff check .
