@@ -225,9 +225,10 @@ def test_a_ball_free_session_has_a_ball_in_at_most_1_percent_of_frames_and_says_
         agreed = ball3d_table(cams, detections, reprojection_gate_px(cams, 0.005), 2)
         assert agreed["x"].notna().mean() >= 0.9
         assert agreed["z"].median() > 0.6  # head height over the table
-    params = {k: DEFAULTS["perception"][k] for k in ("max_reproj_share", "min_views", "ball_flight")}
+    params = {k: DEFAULTS["perception"][k] for k in ("max_reproj_share", "min_views", "ball_pair_min_frames",
+                                                     "ball_flight")}
     with caplog.at_level(logging.INFO):  # the stage's ball, as its main() makes it
-        ball = triangulation_stage.session_ball(cams, detections, params)
+        ball, _ = triangulation_stage.session_ball(cams, detections, params)
     assert len(ball) == FRAMES and (ball["time_ns"] == times).all()
     assert ball["x"].notna().mean() <= 0.01
     said = [r for r in caplog.records if "the session has no ball" in r.getMessage()]

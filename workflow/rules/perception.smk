@@ -155,11 +155,14 @@ rule triangulation:
         ),
     output:
         ball3d="interim/ball3d/{session}.parquet",
+        # {cam}.parquet per camera of the session (DETECTIONS): its 2D ball after the views' agreement
+        ball_views=directory("interim/ball_views/{session}"),
         pose3d="interim/pose3d/{session}.parquet",
     params:
         cams=lambda wc: session_cameras(wc.session),
         max_reproj_share=PERCEPTION["max_reproj_share"],
         min_views=PERCEPTION["min_views"],
+        ball_pair_min_frames=PERCEPTION["ball_pair_min_frames"],
         ball_flight=PERCEPTION["ball_flight"],
         scene=PERCEPTION["scene"],
         association_share=PERCEPTION["association_share"],
@@ -253,6 +256,7 @@ rule report_perception:
         cameras="interim/calibration/cameras.json",
         rig="raw/twin_truth/rig.json",
         detections=expand("interim/detections/{session}/{cam}.parquet", session=sessions(), cam=cameras()),
+        ball_views=expand("interim/ball_views/{session}", session=sessions()),
         ball2d=expand("raw/twin_truth/{session}/{cam}_ball2d.parquet", session=sessions(), cam=cameras()),
         ball3d=expand("interim/ball3d/{session}.parquet", session=sessions()),
         ball=expand("raw/twin_truth/{session}/ball.parquet", session=sessions()),

@@ -5,6 +5,37 @@ Points are triangulated by the linear DLT on undistorted pixels, as one batched 
 all points (OpenCV's cv2.triangulatePoints solves the same system but only for two views and,
 called per point, is orders of magnitude slower; see benchmarks/bench_triangulation.py).
 Outlier views are rejected by their reprojection error through the real (distorted) lens.
+
+The ball's 2D views after the cameras' agreement (issue 49: a 2D candidate kept only where it agrees with
+the other views and the 3D flight). Inputs: per camera its detections (DETECTIONS) and every candidate its
+detector weighed (BALL_CANDIDATES), the calibration, the gate (reprojection_gate_px). agreed_views:
+1. The detections triangulated (triangulate_robust: the largest set of views within the gate).
+2. A frame with a point: a view it leaves out (a camera's detection on a held ball, a shirt, or none) takes
+   that camera's candidate nearest the point's reprojection within the gate (rescue_views).
+3. A frame without one: a camera's detection with the other cameras' candidates on its epipolar line
+   (paired_views), in runs of perception.ball_pair_min_frames frames or more.
+   The candidates of 2 and 3 are of any reason but NOT_A_VIEW's.
+4. The points triangulated again; their 3D ball is on the ball's flight or a phantom (ball_flight).
+corrected_views then gives each camera's ball: a point on the ball's 3D track (on_ball_tracks: its flights
+and the hops and rolls that continue them) takes the views it used, so a contradicted detection is
+dropped and an agreeing candidate taken; a point off it (a held ball, a cap) loses its views; a frame
+where no views agree keeps every camera's detection. The stage writes these as interim/ball_views/ and
+triangulates the 3D ball from them. Cost: 0.04 ms a frame of 3 cameras (CPU, the tiny run with twin.room
+below: 8,442 frames, 105k candidates; 0.025 without candidates).
+
+Measured on the tiny run with twin.room (`snakemake -c2 reports/tables/perception_accuracy.md --configfile
+config/test/tiny.yaml config/twin_room.yaml`, cameras 0-2, 8,442 frames): recall of the visible ball
+97.04 / 99.04 / 98.47 % -> 99.88 / 99.90 / 99.68 %, false detections 0.20 / 0.09 / 0.28 % -> 0.14 / 0.09
+/ 0.09 % (of frames, within 5 px: reports.perception_accuracy); 3D ball median error 1.38 mm either way
+(p99 8.0 -> 7.8 mm, max 32 mm either way), 6,865 -> 6,957 points in flight. Most of the single-view
+misses (169 of cam0's 199, 51 of cam2's 96) were the ball dribbling over the net at 0.2-0.8 m/s after a
+rally, kept by cam1's track and refused 'slow' / 'non_ballistic' by the others: step 3 with the hops'
+track (on_ball_tracks). Without step 3's runs (every pairing taken) cam0 / cam1 false were 0.05 / 0.13 %
+and 5 of the 3D points in flight lay 2.8-171 cm off the truth (cam2's lone detection with a blob on its
+line where the ball was hidden from the others); without step 3 and with every phantom's views dropped
+(no track rule) recall was 96.75 / 99.33 / 98.04 % (the dribble's 3D points are no flight). What is
+left: frames where no camera keeps the ball and no other agrees (cut by the border: 'edge'), and lone
+detections of other objects that no other camera's candidate agrees with (cam0's 12 false frames).
 """
 
 import logging
@@ -14,6 +45,7 @@ import numpy as np
 import pandas as pd
 
 from pingpong.common.camera import Camera
+from pingpong.perception.ball_flight import FlightRule, link_tracks, phantom_reasons
 
 log = logging.getLogger(__name__)
 
@@ -156,12 +188,22 @@ def _aligned_times(tables: list[pd.DataFrame]) -> np.ndarray:
     return times
 
 
+# BALL_CANDIDATES reasons of candidates that may never be a view: 'static', a track at rest (a floor ball, a
+# ball on the table: no ball in play, even where a flight's reprojection passes near it), and 'size' and
+# 'edge', blobs above the area range or cut by the border, centred on their box rather than on a ball. Every
+# other reason may be (kept, off_track, rank, lone, short, slow, non_ballistic, colour): a slow apex or a
+# flight along one camera's axis is refused 'slow' or 'non_ballistic' by that camera alone while the others
+# see it fly.
+NOT_A_VIEW = ("static", "size", "edge")
+
+
 def rescue_views(cameras: list[Camera], times: np.ndarray, px: np.ndarray, tri: dict,
                  candidates: list[pd.DataFrame], max_reproj_px) -> np.ndarray:
     """px (N, C, 2) with each view that the triangulation `tri` of px left out (a camera's detection refused
     by the other views, or none) replaced by that camera's candidate nearest the point's reprojection, where
     it lies within the camera's gate; the rest unchanged. candidates: per camera, every ball candidate its
-    detector weighed (BALL_CANDIDATES' time_ns, u, v), at frame times among `times`.
+    detector weighed (BALL_CANDIDATES' time_ns, u, v, reason), at frame times among `times`; those of a
+    NOT_A_VIEW reason are never taken.
 
     A camera's track can follow the wrong blob (a held ball, a shirt) while the others see the ball: the 2D
     candidate consistent with their 3D point is the ball, whatever the camera's own track chose."""
@@ -169,6 +211,7 @@ def rescue_views(cameras: list[Camera], times: np.ndarray, px: np.ndarray, tri: 
     gate = np.broadcast_to(np.asarray(max_reproj_px, float), (len(cameras),))
     has_point = np.isfinite(tri["points"]).all(axis=1)
     for c, (camera, table) in enumerate(zip(cameras, candidates, strict=True)):
+        table = table[~table["reason"].isin(NOT_A_VIEW)]
         row = np.searchsorted(times, table["time_ns"].to_numpy())
         row = np.minimum(row, len(times) - 1)
         on_frame = times[row] == table["time_ns"].to_numpy()
@@ -185,21 +228,167 @@ def rescue_views(cameras: list[Camera], times: np.ndarray, px: np.ndarray, tri: 
     return out
 
 
-def ball3d_table(cameras: list[Camera], detections: list[pd.DataFrame], max_reproj_px,
-                 min_views: int = 2, candidates: list[pd.DataFrame] | None = None) -> pd.DataFrame:
-    """The ball's 3D centre per camera frame from each camera's detections (table frame). With candidates
-    (per camera, BALL_CANDIDATES), views the detections leave out are filled by candidates that agree with
-    the others (rescue_views) and the points triangulated again."""
+def paired_views(cameras: list[Camera], times: np.ndarray, px: np.ndarray, tri: dict,
+                 candidates: list[pd.DataFrame], max_reproj_px, min_views: int = 2, min_run_frames: int = 1
+                 ) -> np.ndarray:
+    """px (N, C, 2) with the frames where the triangulation `tri` of px found no point replaced by the views
+    of the best hypothesis of a detection and other cameras' candidates that agree with it, where one has at
+    least min_views views; the rest unchanged. candidates: as rescue_views'.
+
+    A hypothesis starts from a camera's detection (its seed) and takes, in each other camera, the candidate
+    whose two-view point with the seed reprojects within both cameras' gates (the lowest RMS of those): the
+    candidate on the seed's epipolar line. Its views are then triangulated together (triangulate_robust);
+    the frame takes the hypothesis of the most views, then the lowest RMS. A ball that one camera's track
+    keeps while the others refuse it (a ball dribbling over the net at 0.5 m/s is 'slow' in a camera that
+    sees it move along its axis) has no second detection to agree with: its candidates do. Only runs of
+    at least min_run_frames consecutive frames so paired are taken: a seed's epipolar line crosses some
+    other blob now and then where the ball is hidden from the other cameras, for a frame or a few (the
+    tiny run with twin.room: of 29 runs of 1-5 frames, 63 of their 100 views were not the ball; of 2 runs
+    of 15 frames or more, 2 of 338). Loops over camera pairs, never over frames."""
+    n_frames, n_cams = px.shape[:2]
+    gate = np.broadcast_to(np.asarray(max_reproj_px, float), (n_cams,))
+    open_frame = ~np.isfinite(tri["points"]).all(axis=1)
+    best, best_views, best_rms = px.copy(), np.zeros(n_frames, int), np.full(n_frames, np.inf)
+    for seed, camera in enumerate(cameras):
+        frames = np.flatnonzero(open_frame & np.isfinite(px[:, seed]).all(axis=1))
+        if len(frames) == 0:
+            continue
+        hypothesis = np.full((len(frames), n_cams, 2), np.nan)
+        hypothesis[:, seed] = px[frames, seed]
+        for other in range(n_cams):
+            if other != seed:
+                hypothesis[:, other] = _epipolar_candidates(
+                    [camera, cameras[other]], times[frames], px[frames, seed], candidates[other],
+                    gate[[seed, other]])
+        fit = triangulate_robust(cameras, hypothesis, gate, min_views)
+        better = (fit["n_views"] > best_views[frames]) | (
+            (fit["n_views"] == best_views[frames]) & (fit["reproj_rms_px"] < best_rms[frames]))
+        better &= fit["n_views"] >= min_views
+        take = frames[better]
+        best[take] = np.where(fit["used_mask"][better][..., None], hypothesis[better], np.nan)
+        best_views[take], best_rms[take] = fit["n_views"][better], fit["reproj_rms_px"][better]
+    paired = np.flatnonzero(best_views > 0)
+    runs = np.split(paired, np.flatnonzero(np.diff(paired) > 1) + 1)
+    short = np.concatenate([run for run in runs if len(run) < min_run_frames] + [np.zeros(0, int)])
+    best[short] = px[short]
+    return best
+
+
+def _epipolar_candidates(pair: list[Camera], times: np.ndarray, seed_px: np.ndarray, table: pd.DataFrame,
+                         gate: np.ndarray) -> np.ndarray:
+    """Per seed pixel (F, 2) at its frame time (F,) in pair[0], the candidate of pair[1] (table: its
+    BALL_CANDIDATES) whose two-view point with it reprojects within both gates (2,) px at the lowest RMS;
+    NaN where none."""
+    out = np.full((len(times), 2), np.nan)
+    table = table[~table["reason"].isin(NOT_A_VIEW)]
+    row = np.minimum(np.searchsorted(times, table["time_ns"].to_numpy()), len(times) - 1)
+    on_frame = np.flatnonzero(times[row] == table["time_ns"].to_numpy())
+    if len(on_frame) == 0:
+        return out
+    row = row[on_frame]
+    pixels = np.stack([seed_px[row], table[["u", "v"]].to_numpy(float)[on_frame]], axis=1)
+    undistorted = np.stack([cam.undistort_pixels(pixels[:, k]) for k, cam in enumerate(pair)], axis=1)
+    points = triangulate_dlt(np.stack([cam.P for cam in pair]), undistorted, np.ones((len(row), 2), bool))
+    errors = reprojection_errors(pair, points, pixels)
+    agree = np.flatnonzero((errors <= gate).all(axis=1))
+    rms = np.sqrt(np.mean(errors[agree] ** 2, axis=1))
+    order = agree[np.lexsort((rms, row[agree]))]  # per frame, lowest RMS first
+    first = order[np.r_[True, row[order][1:] != row[order][:-1]]] if len(order) else order
+    out[row[first]] = pixels[first, 1]
+    return out
+
+
+def agreed_views(cameras: list[Camera], detections: list[pd.DataFrame], max_reproj_px, min_views: int = 2,
+                 candidates: list[pd.DataFrame] | None = None, min_run_frames: int = 1
+                 ) -> dict[str, np.ndarray]:
+    """The ball's views that agree, per camera frame: triangulate_robust's dict of the views (points,
+    n_views, reproj_rms_px, used_mask) with `times` (N,), the detections' pixels `detected` (N, C, 2) (NaN
+    where a camera has none) and the pixels triangulated, `pixels` (N, C, 2): the detections, and with
+    candidates (per camera, BALL_CANDIDATES) the candidates that fill the views the detections leave out
+    where they agree with the others (rescue_views) and, in runs of at least min_run_frames frames where no
+    detections agree, the candidates that agree with one camera's detection (paired_views), the points then
+    triangulated again."""
     times = _aligned_times(detections)
     px = np.stack([np.where(d["detected"].to_numpy()[:, None], d[["u", "v"]].to_numpy(), np.nan)
                    for d in detections], axis=1)
-    tri = triangulate_robust(cameras, px, max_reproj_px, min_views)
+    tri, pixels = triangulate_robust(cameras, px, max_reproj_px, min_views), px
     if candidates is not None:
-        rescued = rescue_views(cameras, times, px, tri, candidates, max_reproj_px)
-        changed = (rescued != px).any(axis=2) & np.isfinite(rescued).all(axis=2)
-        log.info("views filled by a camera's other ball candidates: %d (per camera %s)", changed.sum(),
-                 changed.sum(axis=0).tolist())
-        if changed.any():
-            tri = triangulate_robust(cameras, rescued, max_reproj_px, min_views)
-    return pd.DataFrame({"time_ns": times, **dict(zip("xyz", tri["points"].T, strict=True)),
-                         "n_views": tri["n_views"], "reproj_rms_px": tri["reproj_rms_px"]})
+        pixels = rescue_views(cameras, times, px, tri, candidates, max_reproj_px)
+        filled = _changed(px, pixels)
+        pixels = paired_views(cameras, times, pixels, tri, candidates, max_reproj_px, min_views,
+                              min_run_frames)
+        paired = _changed(px, pixels) & ~filled
+        log.info("views filled by a camera's other ball candidates: %d where the others agree (per camera "
+                 "%s), %d agreeing with a lone detection (per camera %s)", filled.sum(),
+                 filled.sum(axis=0).tolist(), paired.sum(), paired.sum(axis=0).tolist())
+        if (filled | paired).any():
+            tri = triangulate_robust(cameras, pixels, max_reproj_px, min_views)
+    return tri | {"times": times, "detected": px, "pixels": pixels}
+
+
+def _changed(before: np.ndarray, after: np.ndarray) -> np.ndarray:
+    """Which views (N, C) `after` holds that `before` does not (pixels (N, C, 2))."""
+    return np.isfinite(after).all(axis=2) & ~(before == after).all(axis=2)
+
+
+def ball3d_table(cameras: list[Camera], detections: list[pd.DataFrame], max_reproj_px,
+                 min_views: int = 2, candidates: list[pd.DataFrame] | None = None, min_run_frames: int = 1
+                 ) -> pd.DataFrame:
+    """The ball's 3D centre per camera frame (BALL3D, table frame) of agreed_views."""
+    return ball3d_frame(agreed_views(cameras, detections, max_reproj_px, min_views, candidates,
+                                     min_run_frames))
+
+
+def ball3d_frame(views: dict[str, np.ndarray]) -> pd.DataFrame:
+    """A BALL3D table of agreed_views' dict."""
+    return pd.DataFrame({"time_ns": views["times"], **dict(zip("xyz", views["points"].T, strict=True)),
+                         "n_views": views["n_views"], "reproj_rms_px": views["reproj_rms_px"]})
+
+
+def on_ball_tracks(times_ns: np.ndarray, points: np.ndarray, rule: FlightRule) -> np.ndarray:
+    """Which points (N,) of a session's 3D ball (times_ns (N,) increasing, points (N, 3) m, NaN unseen) are
+    the ball in play: those on a 3D track (ball_flight.link_tracks) with a point in flight (phantom_reasons
+    ''). A ball hopping and rolling out over the table after its last flight, at 0.2-0.8 m/s, is no flight
+    (ball_flight's docstring) but continues the flight's track; a ball held in a hand, a floor ball rolling
+    or a cap has a track of its own with no flight."""
+    t_s = (np.asarray(times_ns, np.int64) - times_ns[:1]) * 1e-9
+    reasons = phantom_reasons(t_s, points, rule)
+    frame_s = float(np.median(np.diff(t_s))) if len(t_s) > 1 else 1.0  # as phantom_reasons takes it
+    track = link_tracks(t_s, np.asarray(points, float), rule, frame_s)
+    flights = np.unique(track[(track >= 0) & (reasons == "")])
+    return (track >= 0) & np.isin(track, flights)
+
+
+def corrected_views(detected: np.ndarray, pixels: np.ndarray, used: np.ndarray, is_ball: np.ndarray
+                    ) -> np.ndarray:
+    """Each camera's 2D ball after multi-view agreement (N, C, 2), NaN where none.
+
+    detected (N, C, 2): each camera's own detection (NaN none); pixels (N, C, 2) and used (N, C): the views
+    a frame's 3D point was triangulated from (agreed_views' pixels and used_mask: the detections and the
+    candidates that filled views); is_ball (N,): whether that point is the ball in play (on_ball_tracks).
+    Where the point is the ball a camera's ball is the view the point used: its detection where that agrees
+    with the others, else the candidate that does, else none (its detection contradicts where the other
+    views agree). Where the point is no ball (a held ball, a cap), the views it used are no ball, and a
+    camera it did not use keeps its detection; where no views agree, every camera keeps its own detection
+    (nothing to check it against)."""
+    has_point = used.any(axis=1)
+    own = ~has_point[:, None] | (~is_ball[:, None] & ~used)
+    ball_view = is_ball[:, None] & used
+    return np.where(ball_view[..., None], pixels, np.where(own[..., None], detected, np.nan))
+
+
+def views_table(detections: pd.DataFrame, candidates: pd.DataFrame | None, uv: np.ndarray) -> pd.DataFrame:
+    """A camera's DETECTIONS table of its corrected views uv (N, 2) px (NaN none) at its detections' frames:
+    each view's area that of the detection or candidate it is (candidates: BALL_CANDIDATES, or None), the
+    frames' decode_ok the detections'."""
+    observed = [detections.loc[detections["detected"], ["time_ns", "u", "v", "area_px"]]]
+    if candidates is not None:
+        observed.append(candidates[["time_ns", "u", "v", "area_px"]])
+    areas = pd.concat(observed).drop_duplicates(["time_ns", "u", "v"])
+    views = pd.DataFrame({"time_ns": detections["time_ns"].to_numpy(), "u": uv[:, 0], "v": uv[:, 1]})
+    views = views.merge(areas, on=["time_ns", "u", "v"], how="left")  # NaN u, v match nothing
+    detected = np.isfinite(uv).all(axis=1)
+    if views.loc[detected, "area_px"].isna().any():
+        raise ValueError("a corrected view is neither a detection nor a candidate of its camera")
+    return views.assign(area_px=views["area_px"].fillna(0).astype(detections["area_px"].dtype),
+                        detected=detected, decode_ok=detections["decode_ok"].to_numpy())

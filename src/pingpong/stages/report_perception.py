@@ -1,5 +1,7 @@
 """Rule report_perception: perception against the twin's truth (twin runs only)."""
 
+from pathlib import Path
+
 import pandas as pd
 
 from pingpong.common.artifacts import read_json, read_table
@@ -15,8 +17,13 @@ from pingpong.twin.session import ball_positions_at
 CAPTION = """Each perception stage measured against the digital twin's ground truth over every session
 of this run, beside the threshold the perception tests hold it to (`ok`). Calibration: the worse of
 the intrinsic and extrinsic reprojection RMS, and the calibrated camera centre against the true one.
-Detection: recall on frames where at least half of the ball shows, median centre error on those,
-and detections with no ball within 5 px. 3D: triangulated ball and the 8 model joints against truth
+Detection: each camera's own ball detector (rows "{session} {cam} ball ..."): recall on frames
+where at least half of the ball shows, median centre error on those, and detections with no ball
+within 5 px. Multi-view (rows "{session} {cam} multi-view ..."): the same figures, with the same
+thresholds, of each camera's 2D ball after the cameras' agreement (interim/ball_views/: its detection
+kept where it agrees with the 3D ball of the other views, dropped where they agree elsewhere, and a
+candidate of its detector taken where it agrees with them; the views the 3D ball is triangulated
+from). 3D: triangulated ball and the 8 model joints against truth
 (medians over all frames where both exist). Paddles: resampled OptiTrack poses against truth."""
 
 
@@ -29,8 +36,10 @@ def main(ctx):
     for k, session in enumerate(p["sessions"]):
         for c, cam in enumerate(p["cams"]):
             j = k * n_cams + c  # detections and pixel truth are listed session by session
-            rows += acc.detection_rows(f"{session} {cam}", read_table(i.detections[j], DETECTIONS),
-                                       read_table(i.ball2d[j], truth.BALL2D))
+            truth2d = read_table(i.ball2d[j], truth.BALL2D)
+            rows += acc.detection_rows(f"{session} {cam}", read_table(i.detections[j], DETECTIONS), truth2d)
+            views = read_table(Path(i.ball_views[k]) / f"{cam}.parquet", DETECTIONS)
+            rows += acc.detection_rows(f"{session} {cam} multi-view", views, truth2d)
         ball3d = read_table(i.ball3d[k], BALL3D)
         true_ball = ball_positions_at(read_table(i.ball[k], truth.BALL), ball3d["time_ns"].to_numpy())
         rows += acc.ball3d_rows(ball3d, true_ball)
