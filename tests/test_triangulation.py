@@ -291,7 +291,8 @@ def test_the_views_after_agreement_are_observed_agree_with_the_point_and_make_it
         agreed = agreed_views([cameras[c] for c in cams], [detections[c] for c in cams], gate[cams], 2,
                               [candidates[c] for c in cams])
         in_flight = np.isfinite(agreed["points"]).all(axis=1)
-        return agreed, corrected_views(agreed["detected"], agreed["pixels"], agreed["used_mask"], in_flight)
+        return agreed, corrected_views(agreed["detected"], agreed["pixels"], agreed["used_mask"], in_flight,
+                                       np.zeros_like(in_flight))
 
     agreed, views = views_of([0, 1, 2, 3])
     has = np.isfinite(views).all(axis=2)
@@ -328,16 +329,19 @@ def test_the_views_after_agreement_are_observed_agree_with_the_point_and_make_it
 
 
 def test_a_phantoms_views_are_dropped_and_other_cameras_keep_theirs():
-    """corrected_views on a frame of each kind (3 cameras): a point in flight from cameras 0 and 1 with a
-    candidate in camera 1 (camera 2's detection disagrees: dropped); a phantom from cameras 0 and 1 (dropped;
-    camera 2's own detection kept); no point (every detection kept)."""
-    detected = np.array([[[1.0, 1.0], [np.nan, np.nan], [9.0, 9.0]]] * 3)
+    """corrected_views on a frame of each kind (3 cameras): a point of the ball from cameras 0 and 1 with a
+    candidate in camera 1 (camera 2's detection disagrees: dropped); a point of no ball from cameras 0 and 1
+    (dropped; camera 2's own detection kept); a point too short to judge, and no point (every detection
+    kept)."""
+    detected = np.array([[[1.0, 1.0], [np.nan, np.nan], [9.0, 9.0]]] * 4)
     pixels = detected.copy()
-    pixels[:2, 1] = [2.0, 2.0]  # camera 1's candidate filled the view
-    used = np.array([[True, True, False], [True, True, False], [False, False, False]])
-    views = corrected_views(detected, pixels, used, np.array([True, False, False]))
+    pixels[:3, 1] = [2.0, 2.0]  # camera 1's candidate filled the view
+    used = np.array([[True, True, False]] * 3 + [[False, False, False]])
+    views = corrected_views(detected, pixels, used, np.array([True, False, False, False]),
+                            np.array([False, True, False, False]))
     nan = [np.nan, np.nan]
-    np.testing.assert_array_equal(views, [[[1, 1], [2, 2], nan], [nan, nan, [9, 9]], [[1, 1], nan, [9, 9]]])
+    np.testing.assert_array_equal(views, [[[1, 1], [2, 2], nan], [nan, nan, [9, 9]], [[1, 1], nan, [9, 9]],
+                                          [[1, 1], nan, [9, 9]]])
 
 
 def test_a_views_table_takes_each_views_area_from_what_it_is():
@@ -384,7 +388,7 @@ def test_a_lone_detection_takes_the_candidates_on_its_epipolar_lines_only_in_lon
 def test_the_ball_hopping_out_after_its_flight_is_on_its_track_and_a_held_ball_is_not():
     """A flight of 0.5 s under gravity down to 7 cm over the table, then the ball rolling on at 0.5 m/s (no
     flight: it does not fall), then a ball held 2 m away and swayed slowly: the flight and the roll are the
-    ball, the held ball is not."""
+    ball, the held ball is no ball, a lone point is neither."""
     t = np.arange(300) * 0.01
     xyz = np.full((300, 3), np.nan)
     flight = t < 0.5
@@ -395,5 +399,8 @@ def test_the_ball_hopping_out_after_its_flight_is_on_its_track_and_a_held_ball_i
     xyz[roll] = end + np.outer(t[roll] - 0.49, [0.0, 0.5, 0.0])
     held = t >= 2.0
     xyz[held] = [1.5, 2.0, 1.0] + 0.02 * np.sin(3 * t[held])[:, None]
-    is_ball = on_ball_tracks(np.round(t * 1e9).astype(np.int64) + 10**18, xyz, FLIGHT_RULE)
+    xyz[280] = [-1.0, -2.0, 1.5]  # a lone point elsewhere: too short to judge
+    is_ball, no_ball = on_ball_tracks(np.round(t * 1e9).astype(np.int64) + 10**18, xyz, FLIGHT_RULE)
     assert is_ball[flight | roll].all() and not is_ball[held].any() and not is_ball[np.isnan(xyz[:, 0])].any()
+    assert no_ball[held & (t != t[280])].all() and not no_ball[flight | roll | np.isnan(xyz[:, 0])].any()
+    assert not is_ball[280] and not no_ball[280]

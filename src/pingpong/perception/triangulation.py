@@ -18,24 +18,28 @@ detector weighed (BALL_CANDIDATES), the calibration, the gate (reprojection_gate
 4. The points triangulated again; their 3D ball is on the ball's flight or a phantom (ball_flight).
 corrected_views then gives each camera's ball: a point on the ball's 3D track (on_ball_tracks: its flights
 and the hops and rolls that continue them) takes the views it used, so a contradicted detection is
-dropped and an agreeing candidate taken; a point off it (a held ball, a cap) loses its views; a frame
-where no views agree keeps every camera's detection. The stage writes these as interim/ball_views/ and
-triangulates the 3D ball from them. Cost: 0.04 ms a frame of 3 cameras (CPU, the tiny run with twin.room
-below: 8,442 frames, 105k candidates; 0.025 without candidates).
+dropped and an agreeing candidate taken; a point on a track of no ball (a held ball, a cap) loses its
+views; a frame where no views agree, or whose point's track is too short to judge, keeps every camera's
+detection. The triangulation stage writes these as interim/ball_views/; the 3D ball's points in flight
+are triangulated from exactly these views. Cost: 0.04 ms a frame of 3 cameras (one CPU, the tiny run with
+twin.room below: 8,442 frames, 105k candidates; 0.025 ms without candidates).
 
 Measured on the tiny run with twin.room (`snakemake -c2 reports/tables/perception_accuracy.md --configfile
-config/test/tiny.yaml config/twin_room.yaml`, cameras 0-2, 8,442 frames): recall of the visible ball
-97.04 / 99.04 / 98.47 % -> 99.88 / 99.90 / 99.68 %, false detections 0.20 / 0.09 / 0.28 % -> 0.14 / 0.09
-/ 0.09 % (of frames, within 5 px: reports.perception_accuracy); 3D ball median error 1.38 mm either way
-(p99 8.0 -> 7.8 mm, max 32 mm either way), 6,865 -> 6,957 points in flight. Most of the single-view
-misses (169 of cam0's 199, 51 of cam2's 96) were the ball dribbling over the net at 0.2-0.8 m/s after a
-rally, kept by cam1's track and refused 'slow' / 'non_ballistic' by the others: step 3 with the hops'
-track (on_ball_tracks). Without step 3's runs (every pairing taken) cam0 / cam1 false were 0.05 / 0.13 %
-and 5 of the 3D points in flight lay 2.8-171 cm off the truth (cam2's lone detection with a blob on its
-line where the ball was hidden from the others); without step 3 and with every phantom's views dropped
-(no track rule) recall was 96.75 / 99.33 / 98.04 % (the dribble's 3D points are no flight). What is
-left: frames where no camera keeps the ball and no other agrees (cut by the border: 'edge'), and lone
-detections of other objects that no other camera's candidate agrees with (cam0's 12 false frames).
+config/test/tiny.yaml config/twin_room.yaml`, cameras 0-2, 8,442 frames): recall of the visible ball 97.04 /
+99.04 / 98.47 % -> 99.88 / 99.93 / 99.68 %, false detections 0.20 / 0.09 / 0.28 % -> 0.14 / 0.09 / 0.09 %
+(of frames, within 5 px: reports.perception_accuracy); 3D ball median error 1.379 -> 1.384 mm (p99 7.8 mm,
+max 32 mm both), 6,865 -> 6,957 points in flight (before: 6fb8228's rescue_views alone). Most of the
+single-view misses (169 of cam0's 199, 51 of cam2's 96) were the ball dribbling over the net at 0.2-0.8 m/s
+after a rally, kept by cam1's track and refused 'slow' / 'non_ballistic' by the others: step 3 with the
+hops' track (on_ball_tracks). Without step 3's runs (every pairing taken) cam0 / cam1 false were 0.05 / 0.13
+% and 5 of the 3D points in flight lay 2.8-171 cm off the truth (cam2's lone detection with a blob on its
+line where the ball was hidden from the others); without step 3 and with every phantom's views dropped (no
+track rule) recall was 96.75 / 99.33 / 98.04 % (the dribble's 3D points are no flight); with the views of
+tracks too short to judge dropped too, the plain tiny run (config/test/tiny.yaml, the colour method, whose
+candidates are its detections) lost 1 / 1 / 2 right detections, now none (recall 99.84 / 100 / 99.79 %,
+false 0 / 0 / 0.01 %, as its single-view rows). What is left: frames where no camera keeps the ball and no
+other agrees (cut by the border: 'edge'), and lone detections of other objects that no other camera's
+candidate agrees with (cam0's 12 false frames).
 """
 
 import logging
@@ -345,34 +349,37 @@ def ball3d_frame(views: dict[str, np.ndarray]) -> pd.DataFrame:
                          "n_views": views["n_views"], "reproj_rms_px": views["reproj_rms_px"]})
 
 
-def on_ball_tracks(times_ns: np.ndarray, points: np.ndarray, rule: FlightRule) -> np.ndarray:
-    """Which points (N,) of a session's 3D ball (times_ns (N,) increasing, points (N, 3) m, NaN unseen) are
-    the ball in play: those on a 3D track (ball_flight.link_tracks) with a point in flight (phantom_reasons
-    ''). A ball hopping and rolling out over the table after its last flight, at 0.2-0.8 m/s, is no flight
-    (ball_flight's docstring) but continues the flight's track; a ball held in a hand, a floor ball rolling
-    or a cap has a track of its own with no flight."""
+def on_ball_tracks(times_ns: np.ndarray, points: np.ndarray, rule: FlightRule
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """(which points (N,) of a session's 3D ball are the ball in play, which are no ball); times_ns (N,)
+    increasing, points (N, 3) m, NaN unseen. The ball: the points of a 3D track (ball_flight.link_tracks)
+    with a point in flight (phantom_reasons ''). A ball hopping and rolling out over the table after its
+    last flight, at 0.2-0.8 m/s, is no flight (ball_flight's docstring) but continues the flight's track;
+    a ball held in a hand, a floor ball rolling or a cap has a track of its own with no flight: no ball.
+    A track too short to judge ('isolated': the ball seen by two cameras for a frame or two between
+    occlusions, on the plain tiny run) is neither."""
     t_s = (np.asarray(times_ns, np.int64) - times_ns[:1]) * 1e-9
     reasons = phantom_reasons(t_s, points, rule)
     frame_s = float(np.median(np.diff(t_s))) if len(t_s) > 1 else 1.0  # as phantom_reasons takes it
     track = link_tracks(t_s, np.asarray(points, float), rule, frame_s)
     flights = np.unique(track[(track >= 0) & (reasons == "")])
-    return (track >= 0) & np.isin(track, flights)
+    is_ball = (track >= 0) & np.isin(track, flights)
+    return is_ball, (track >= 0) & ~is_ball & (reasons != "isolated")
 
 
-def corrected_views(detected: np.ndarray, pixels: np.ndarray, used: np.ndarray, is_ball: np.ndarray
-                    ) -> np.ndarray:
+def corrected_views(detected: np.ndarray, pixels: np.ndarray, used: np.ndarray, is_ball: np.ndarray,
+                    no_ball: np.ndarray) -> np.ndarray:
     """Each camera's 2D ball after multi-view agreement (N, C, 2), NaN where none.
 
     detected (N, C, 2): each camera's own detection (NaN none); pixels (N, C, 2) and used (N, C): the views
     a frame's 3D point was triangulated from (agreed_views' pixels and used_mask: the detections and the
-    candidates that filled views); is_ball (N,): whether that point is the ball in play (on_ball_tracks).
-    Where the point is the ball a camera's ball is the view the point used: its detection where that agrees
-    with the others, else the candidate that does, else none (its detection contradicts where the other
-    views agree). Where the point is no ball (a held ball, a cap), the views it used are no ball, and a
-    camera it did not use keeps its detection; where no views agree, every camera keeps its own detection
-    (nothing to check it against)."""
-    has_point = used.any(axis=1)
-    own = ~has_point[:, None] | (~is_ball[:, None] & ~used)
+    candidates that filled views); is_ball, no_ball (N,): whether that point is the ball in play, or no
+    ball (on_ball_tracks). Where the point is the ball a camera's ball is the view the point used: its
+    detection where that agrees with the others, else the candidate that does, else none (its detection
+    contradicts where the other views agree). Where the point is no ball (a held ball, a cap), the views
+    it used are no ball, and a camera it did not use keeps its detection; elsewhere (no views agree, or a
+    point too short to judge) every camera keeps its own detection (nothing to check it against)."""
+    own = ~(is_ball | no_ball)[:, None] | (no_ball[:, None] & ~used)
     ball_view = is_ball[:, None] & used
     return np.where(ball_view[..., None], pixels, np.where(own[..., None], detected, np.nan))
 

@@ -64,7 +64,7 @@ def session_ball(cameras: list, detections: list[pd.DataFrame], p: dict,
                 "3D ball whose views agree in %d of %d frames; %s", int(agreed["n_views"].astype(bool).sum()),
                 len(ball), verdict)
     views = corrected_views(agreed["detected"], agreed["pixels"], agreed["used_mask"],
-                            on_ball_tracks(agreed["times"], agreed["points"], rule))
+                            *on_ball_tracks(agreed["times"], agreed["points"], rule))
     log_view_changes([c.name for c in cameras], agreed["detected"], views)
     return ball, views
 
