@@ -6,6 +6,8 @@ detected within FALSE_PX; a false detection is one farther than FALSE_PX from th
 frame without a visible ball (visibility 0).
 """
 
+from dataclasses import replace
+
 import cv2
 import numpy as np
 import pandas as pd
@@ -235,6 +237,74 @@ def test_in_a_club_room_the_colour_method_takes_the_box(room_clip):
     found = detection.detect_stream(frames, BallDetector())
     box_centre = ((BOX[0] + BOX[2] - 1) / 2, (BOX[1] + BOX[3] - 1) / 2)
     assert _near(found, box_centre, 5.0).mean() >= 0.5
+
+
+# ------------------------------------------------------------------------ the fast paths are the plain ones
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), colour=st.sampled_from(["orange", "white"]),
+       width=st.sampled_from([480, 960]))
+def test_the_colour_tests_on_the_moving_pixels_are_the_tests_on_the_whole_image(seed, colour, width):
+    # frame_candidates converts and tests only the moving pixels in the tests' BGR box (and, for the white
+    # ball's opened mask, those within the opening's reach: 3 px at 960 wide): the masks must be those of
+    # detection._colour_mask on the whole image ANDed with the moving mask, pixel for pixel
+    rng = np.random.default_rng(seed)
+    height = 48
+    drawn = rng.integers((0, 60, 40), (30, 256, 256), (64, 3))
+    ball_like = np.array([_hsv_bgr(h, s, v) for h, s, v in drawn])
+    pale = rng.integers(150, 256, (64, 3))
+    palette = np.vstack([ball_like, pale, rng.integers(0, 256, (64, 3))]).astype(np.uint8)
+    blocks = rng.integers(0, len(palette), (height // 4, width // 4))  # 4x4 blocks: an opening keeps some
+    image = palette[np.kron(blocks, np.ones((4, 4), int))]
+    image = np.clip(image + rng.normal(0, 3, image.shape), 0, 255).astype(np.uint8)
+    moving = cv2.resize((rng.random((height // 8, width // 8)) < 0.4).astype(np.uint8) * 255,
+                        (width, height), interpolation=cv2.INTER_NEAREST)
+    detector = detection.ball_detector({"colour": colour})
+    tests = (detector, ball_track.loosened(detector, SETTINGS))
+    hsv = cv2.cvtColor(image, cv2.COLOR_BGR2HSV)
+    expected = [detection._colour_mask(hsv, replace(test, scene_contrast_min=0), width, None) & moving
+                for test in tests]
+    assert any(mask.any() for mask in expected)
+    for mask, want in zip(ball_track._moving_colour(image, moving, tests), expected, strict=True):
+        np.testing.assert_array_equal(mask, want)
+
+
+def test_the_bgr_box_holds_every_colour_the_tests_pass():
+    # all 2^24 colours (as _bgr_box sees them, here in one image): none outside the box passes a test,
+    # and for the orange ball the box leaves out most colours (the docstring's B 0-135, G 21-212, R 82-255)
+    detector = BallDetector()
+    tests = (detector, ball_track.loosened(detector, SETTINGS))
+    low, high = ball_track._bgr_box(tests)
+    assert (low, high) == ((0, 21, 82), (135, 212, 255))
+    code = np.arange(1 << 24, dtype=np.uint32)
+    colours = np.stack([code >> 16, (code >> 8) & 255, code & 255], -1).astype(np.uint8)
+    colours = colours.reshape(4096, 4096, 3)
+    hsv = cv2.cvtColor(colours, cv2.COLOR_BGR2HSV)
+    passed = (detection._in_colour_range(hsv, tests[0]) | detection._in_colour_range(hsv, tests[1])) > 0
+    inside = cv2.inRange(colours, low, high) > 0
+    assert not (passed & ~inside).any() and inside.mean() < 0.3  # measured: 27 %
+
+
+@given(points=st.lists(st.tuples(st.integers(0, 60), st.integers(0, 60)), min_size=3, max_size=300))
+def test_detections_covariance_and_median_are_numpys(points):
+    x, y = np.array(points).T
+    np.testing.assert_array_equal(detection._covariance(x, y), np.cov(np.vstack([x, y])))
+    values = (x * 4 + y).astype(np.float32)
+    assert detection._median(values) == np.median(values) and detection._median(values).dtype == np.float32
+
+
+@given(rate_hz=st.sampled_from([30.0, 100.0]), speed=st.floats(100, 2500), accel=st.floats(-3000, 3000),
+       n=st.integers(2, 12))
+def test_a_track_predicts_its_constant_acceleration_path(rate_hz, speed, accel, n):
+    # the fit is made once per track and reused for every later time it is asked about (1e-4 px: the
+    # times are whole ns)
+    times, uv = _flight(rate_hz, n + 3, (speed, -speed / 2), (0.0, accel))
+    t = (times - times[0]) * 1e-9
+    track = ball_track._Track([(k, 0) for k in range(n)], list(t[:n]), list(uv[:n]), [1.0] * n)
+    for k in range(n, n + 3):
+        expected = uv[k] if n >= 3 else uv[n - 1] + (uv[n - 1] - uv[n - 2]) * (k - n + 1)
+        np.testing.assert_allclose(track.predict(t[k])[0], expected, atol=1e-4)
 
 
 # ---------------------------------------------------------------------------- the tracker's maths

@@ -170,6 +170,8 @@ cap); a moving camera has no background; a ball caught or slowed by a hand is no
 issue 49's real clip (not in this repository).
 """
 
+import bisect
+import functools
 import logging
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
@@ -184,9 +186,11 @@ from pingpong.perception.detection import (
     REFERENCE_WIDTH,
     BallDetector,
     _blobs,
-    _colour_mask,
     _fill,
+    _in_colour_range,
     _is_seam,
+    _opened,
+    _opening_side,
     _skin_without_core,
     _weighted_centre,
 )
@@ -199,6 +203,7 @@ EDGE_RUN = 3  # points in consecutive frames that a track's end beyond a gap nee
 MAX_BRANCHES = 3  # candidates in one gate that each extend a track (the nearest first)
 MAX_TRACKS = 200  # live tracks kept at once (the longest first): a bound on the hypotheses
 MAX_HELD_SHARE = 0.25  # of a track's windows slow and not falling (judge): more, and it is no flight
+HSV_MARGIN = 3  # px around a blob's box whose HSV its tests read (_hsv_around)
 _APART = np.ones((5, 5), np.uint8)  # a washed blob's pixels lie >= 3 px from the colour test's blobs
 CANDIDATE_COLUMNS = ("time_ns", "u", "v", "area_px", "score", "kept", "reason")
 
@@ -234,6 +239,7 @@ def track_reduction(width: int) -> int:
     return next((r for r in (8, 4, 2) if width / r >= TRACK_WIDTH_PX), 1)
 
 
+@functools.lru_cache(maxsize=8)  # per frame otherwise: 0.007 ms
 def loosened(detector: BallDetector, settings: TrackSettings) -> BallDetector:
     """The colour test of `detector` loosened for a washed ball's pixels: its blur test's saturation floor
     (detection's "Fast far balls") and its value floor times washed_value_factor, with no scene contrast
@@ -264,9 +270,10 @@ def _score(hsv: np.ndarray, x: int, y: int, blob: np.ndarray, channel: int) -> f
     """Ball-likeness of a blob: the mean of its CORE_PX highest values of HSV `channel` (the detector's
     centre channel: an orange ball's saturation) over 255, times its fill of its moment ellipse
     (detection._fill, at most 1)."""
-    rows, cols = np.nonzero(blob)
-    values = hsv[y + rows, x + cols, channel]
-    core = np.partition(values, -CORE_PX)[-CORE_PX:].mean() if len(values) > CORE_PX else values.max()
+    values = hsv[y:y + blob.shape[0], x:x + blob.shape[1], channel][blob > 0]  # row by row, as np.nonzero
+    # the integer sum over CORE_PX: ndarray.mean's float, without its cost
+    core = int(np.partition(values, -CORE_PX)[-CORE_PX:].sum()) / CORE_PX if len(values) > CORE_PX \
+        else values.max()
     return float(core) / 255 * min(_fill(blob)[0], 1.0)
 
 
@@ -279,27 +286,27 @@ def frame_candidates(image: np.ndarray, reduction: int, detector: BallDetector, 
     (detection._skin_without_core: JPEG lifts skin's saturation to 150-177 beside a hand), 'edge' for
     blobs touching the image's border (the skin test's ring is cut there, and a ball cut by the border is
     centred on its visible part)."""
-    hsv = cv2.cvtColor(image, cv2.COLOR_BGR2HSV)
-    width = image.shape[1]
-    strict = _colour_mask(hsv, replace(detector, scene_contrast_min=0), width, None) & moving
+    height, width = image.shape[:2]
+    strict, loose = _moving_colour(image, moving, (detector, loosened(detector, settings)))
+    hsv = np.empty_like(image)  # HSV only around the blobs (_hsv_around): all that is read of it
     min_area, max_area, _ = detector.scaled(width)
     if reduction > 1:
         min_area *= detector.candidate_area
     found, taken = [], np.zeros_like(strict)
     for x, y, w, h, blob, area in _blobs(strict, min_area, np.inf):
+        _hsv_around(image, hsv, x, y, w, h)
         reason = "size" if area > max_area else "colour" if \
             detector.seams and _is_seam(hsv, x, y, blob, detector.saturation_min) else ""
         found.append((x, y, blob, area, reason))
         taken[y:y + h, x:x + w] |= blob
     # a washed ball's blob: of the loosened test with a pixel at the blur test's peak, apart from those above
-    loose = _colour_mask(hsv, loosened(detector, settings), width, None) & moving
     loose[cv2.dilate(taken, _APART) > 0] = 0
     washed_area = detector.blur_max_area_px * (width / REFERENCE_WIDTH) ** 2
     for x, y, w, h, blob, area in _blobs(loose, min_area, washed_area):
+        _hsv_around(image, hsv, x, y, w, h)
         if hsv[y:y + h, x:x + w, 1][blob > 0].max() >= detector.blur_peak_saturation:
             found.append((x, y, blob, area, "colour" if _skin_without_core(hsv, x, y, blob, detector, width)
                           else ""))
-    height = image.shape[0]
     found = [(x, y, blob, area, reason or ("edge" if min(x, y) == 0 or x + blob.shape[1] == width
                                            or y + blob.shape[0] == height else ""))
              for x, y, blob, area, reason in found]
@@ -309,6 +316,54 @@ def frame_candidates(image: np.ndarray, reduction: int, detector: BallDetector, 
     else:
         found = [(*blob, 1.0) for blob in found]
     return _ranked(hsv, found, reduction, detector, settings)
+
+
+def _moving_colour(image: np.ndarray, moving: np.ndarray, tests: tuple[BallDetector, ...]) -> list:
+    """uint8 0/255 mask of each colour test (detection._colour_mask without scene contrast) on `image` AND
+    `moving`, with the HSV conversion and the tests run only on the moving pixels (and, for a test that
+    opens its mask, those within the opening's reach of them) in the BGR box of the colours the tests
+    pass (`_bgr_box`): equal to the tests run on the whole image, ANDed with moving."""
+    height, width = image.shape[:2]
+    side = max(_opening_side(test, width) for test in tests)
+    # an opening (erode, dilate) reads its mask up to its side away (an even disc is off-centre)
+    reach = moving if side <= 1 else cv2.dilate(moving, np.ones((2 * side + 1,) * 2, np.uint8))
+    points = cv2.findNonZero(cv2.inRange(image, *_bgr_box(tests)) & reach)
+    masks = [np.zeros(height * width, np.uint8) for _ in tests]
+    if points is not None:
+        points = points.reshape(-1, 2)
+        flat = points[:, 1] * width + points[:, 0]
+        hsv = cv2.cvtColor(image.reshape(-1, 3).take(flat, axis=0)[None], cv2.COLOR_BGR2HSV)  # 1 x n pixels
+        for mask, test in zip(masks, tests, strict=True):
+            mask[flat] = _in_colour_range(hsv, test)[0]
+    # an opening only removes pixels, but it may leave some of its reach that did not move
+    masks = [mask.reshape(height, width) for mask in masks]
+    return [_opened(mask, test, width) & moving if side > 1 else mask
+            for mask, test in zip(masks, tests, strict=True)]
+
+
+@functools.lru_cache(maxsize=8)
+def _bgr_box(tests: tuple[BallDetector, ...]) -> tuple[tuple[int, int, int], tuple[int, int, int]]:
+    """(low, high) BGR of the smallest box holding every colour that any of the tests' HSV ranges
+    (detection._in_colour_range) passes, found by converting all 2^24 colours (50 ms, once): a pixel
+    outside it fails every test. The orange ball's loosened test: B 0-135, G 21-212, R 82-255."""
+    low, high = np.full(3, 255), np.zeros(3, int)
+    green, red = np.meshgrid(np.arange(256, dtype=np.uint8), np.arange(256, dtype=np.uint8), indexing="ij")
+    for blue in range(256):
+        colours = np.dstack([np.full_like(green, blue), green, red])
+        hsv = cv2.cvtColor(colours, cv2.COLOR_BGR2HSV)
+        passed = functools.reduce(cv2.bitwise_or, [_in_colour_range(hsv, test) for test in tests]) > 0
+        if passed.any():
+            found = colours[passed]
+            low, high = np.minimum(low, found.min(axis=0)), np.maximum(high, found.max(axis=0))
+    return tuple(int(c) for c in low), tuple(int(c) for c in high)
+
+
+def _hsv_around(image: np.ndarray, hsv: np.ndarray, x: int, y: int, w: int, h: int) -> None:
+    """Fills `hsv` with the HSV of `image` on a blob's box (x, y, w, h) and HSV_MARGIN px around it
+    (clipped to the image): what the blob's tests read (detection._is_seam 2 px around it,
+    detection._skin_without_core 3, detection._weighted_centre 1)."""
+    box = np.s_[max(y - HSV_MARGIN, 0):y + h + HSV_MARGIN, max(x - HSV_MARGIN, 0):x + w + HSV_MARGIN]
+    hsv[box] = cv2.cvtColor(image[box], cv2.COLOR_BGR2HSV)
 
 
 def _ranked(hsv, found, reduction: int, detector: BallDetector, settings: TrackSettings) -> list[tuple]:
@@ -400,13 +455,24 @@ class _Track:
     def predict(self, t: float) -> np.ndarray | None:
         """The position at time t from a constant-acceleration fit of the last FIT_POINTS points (constant
         velocity from 2), or None from 1 point."""
+        if self._fit is None:
+            return None
+        dt = t - self.t[-1]
+        # np.vander([dt], k)'s row, without its cost: its powers are the products dt * dt
+        return np.array([[dt * dt, dt, 1.0] if len(self._fit) == 3 else [dt, 1.0]]) @ self._fit
+
+    @functools.cached_property
+    def _fit(self) -> np.ndarray | None:
+        """predict's coefficients (highest power first, a column per image axis; time from the last
+        point), fitted once: a track is predicted in every frame it lives through without a point (on
+        twin.room's camera 2, 3 of 4 predictions), and a track's points never change (extended, part: a
+        new track)."""
         n = min(len(self.t), FIT_POINTS)
         if n < 2:
             return None
         times = np.asarray(self.t[-n:]) - self.t[-1]
         design = np.vander(times, 3 if n >= 3 else 2)
-        coefficients = np.linalg.lstsq(design, np.asarray(self.uv[-n:]), rcond=None)[0]
-        return np.vander([t - self.t[-1]], design.shape[1]) @ coefficients
+        return np.linalg.lstsq(design, np.asarray(self.uv[-n:]), rcond=None)[0]
 
 
 def _gates(track: _Track, t: float, settings: TrackSettings, scale: float) -> tuple[np.ndarray, float]:
@@ -463,14 +529,21 @@ def _pruned(tracks: list[_Track]) -> tuple[list[_Track], list[_Track]]:
         groups.setdefault(tuple(track.points[-3:]), []).append(track)
     live, ended = [], []
     for group in groups.values():
+        if len(group) == 1:  # most tracks (no other shares its last 3 points): nothing to choose
+            live.append(group[0])
+            continue
         start = max(track.points[0][0] for track in group)
-        best = max(group, key=lambda tr: (sum(frame >= start for frame, _ in tr.points), len(tr.points)))
+        # points since start: a track's frames increase
+        best = max(group, key=lambda tr: (len(tr.points) - bisect.bisect_left(tr.points, start,
+                                                                              key=lambda p: p[0]),
+                                          len(tr.points)))
         live.append(best)
         shared = set(best.points)
         for track in group:
-            joined = next(i for i, point in enumerate(track.points) if point in shared)
-            if track is not best and joined:
-                ended.append(track.part(slice(joined)))
+            if track is not best:
+                joined = next(i for i, point in enumerate(track.points) if point in shared)
+                if joined:
+                    ended.append(track.part(slice(joined)))
     live.sort(key=lambda tr: -len(tr.points))
     return live[:MAX_TRACKS], ended + live[MAX_TRACKS:]
 
