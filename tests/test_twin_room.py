@@ -18,12 +18,14 @@ from hypothesis import strategies as st
 from workflow_util import ROOT
 
 from pingpong.common.seeding import rng_for
-from pingpong.frames import FRAME_NS
+from pingpong.frames import BALL_RADIUS, FRAME_NS, TABLE_HALF_LENGTH, TABLE_HALF_WIDTH
 from pingpong.io.camera_streams import CameraFrame
 from pingpong.perception.detection import BallDetector, detect_stream
+from pingpong.twin import cameras as cameras_module
 from pingpong.twin import render, room
+from pingpong.twin import session as session_module
 from pingpong.twin.cameras import EXPOSURE_NS, record_camera, record_room_camera
-from pingpong.twin.rig import make_rig
+from pingpong.twin.rig import FLOOR_Z, make_rig
 from pingpong.twin.session import FaultRates, simulate_session
 
 SEED = 5
@@ -181,17 +183,80 @@ def test_other_balls_are_drawn_where_their_truth_says(camera, club):
     # with the floor move their centre pixel to H 6-16, S 162-253, V 122-200 (measured); the tolerances
     # H 12 +- 6, S >= 150, V 100-255. The pixel of a ball's centre is its projection within 0.01 px.
     frames, _, others, *_ = club
-    assert set(others["ball"]) == {"held", "rolling", "floor0", "floor1", "floor2"}
+    assert set(others["ball"]) == {"held", "rolling", "floor0", "floor1", "floor2", "table0"}
     projected = camera.project(others[["x", "y", "z"]].to_numpy())
     np.testing.assert_allclose(projected, others[["u", "v"]].to_numpy(), atol=0.01)
-    still = others[others["ball"].str.startswith("floor") & (others["visibility"] >= 0.99)]
-    assert len(still) >= 300
+    still = others[others["ball"].str.match(r"floor|table") & (others["visibility"] >= 0.99)]
+    assert len(still) >= 300 and (still["ball"] == "table0").sum() >= 300
     by_time = {f.time_ns: f for f in frames}
     hsv = np.array(
         [_hsv(_decode(by_time[row.time_ns]), (row.u, row.v)) for row in still.iloc[::10].itertuples()]
     )
     assert (np.abs(hsv[:, 0] - render.BALL_HSV[0]) <= 6).all() and (hsv[:, 1] >= 150).all()
     assert (hsv[:, 2] >= 100).all()
+
+
+@settings(max_examples=50, deadline=None)
+@given(seed=st.integers(0, 10**6), tables=st.integers(1, 20), floors=st.integers(0, 3), rolling=st.booleans())
+def test_table_balls_rest_on_the_top_and_leave_the_other_balls_where_they_were(seed, tables, floors, rolling):
+    # all of each ball on the top (its centre a radius above it, its edge inside the top's), clear of the
+    # net; the floor and rolling balls where they are without table balls (one world whatever is on)
+    ball = pd.DataFrame({"rally": [0], "time_ns": [0], "y": [1.0]})
+    times, offsets = np.arange(4, dtype=np.int64) * FRAME_NS, np.array([-1000, 0, 1000])
+
+    def balls(n: int) -> room.OtherBalls:
+        features = room.Room(floor_balls=floors, rolling_ball=rolling, table_balls=n)
+        return room.other_ball_positions(features, rng_for(seed, "room"), ball, times, offsets, {}, {}, {})
+
+    with_tables, without = balls(tables), balls(0)
+    on_table = np.array([with_tables.still[f"table{k}"] for k in range(tables)])
+    assert len(with_tables.still) == floors + tables and room.Room(table_balls=tables).balls
+    assert (np.abs(on_table[:, 0]) + BALL_RADIUS < TABLE_HALF_WIDTH).all()
+    assert (np.abs(on_table[:, 1]) + BALL_RADIUS < TABLE_HALF_LENGTH).all()
+    assert (np.abs(on_table[:, 1]) >= room.NET_CLEARANCE).all() and (on_table[:, 2] == BALL_RADIUS).all()
+    for name, place in without.still.items():
+        np.testing.assert_array_equal(with_tables.still[name], place)
+    assert with_tables.moving.keys() == without.moving.keys()
+    for name, path in without.moving.items():
+        np.testing.assert_array_equal(with_tables.moving[name], path)
+
+
+def test_still_balls_drawn_once_are_those_drawn_every_frame(session, camera):
+    # balls at rest drawn into the background once (render.with_still_balls) against the same balls given to
+    # render_scene as ordinary balls every frame: the same image and truths, bit for bit, in frames where a
+    # player, a paddle or the ball in play overlaps one (drawn again) and in frames where nothing does
+    times = np.unique(session.people["time_ns"])[:400]
+    bodies = {p: rows.filter(like="j").to_numpy().reshape(-1, 25, 3)[:400]
+              for p, rows in session.people.groupby("person", sort=False)}
+    paddles = cameras_module._paddles_at(session.paddles, times)
+    play = session_module.ball_positions_at(session.ball, times)
+    # on the floor where the near player stands (in front of, behind and beside the legs), and on the table
+    # under the ball in play's first flight, one overlapping another
+    feet = [np.array([x, y, FLOOR_Z + BALL_RADIUS]) for x, y in bodies["near"][::80, 11, :2]]
+    flight = play[np.isfinite(play).all(axis=1) & (np.abs(play[:, 2]) < 0.3)][0]
+    on_table = [np.array([x, flight[1], BALL_RADIUS]) for x in (flight[0], flight[0] + 0.02)]
+    still = feet + on_table
+    background = render.render_background(camera, render.make_lab(rng_for(SEED, "lab")), rng_for(SEED, "bg"))
+    baked = render.with_still_balls(background, camera, still)
+    looks = render.make_player_looks(rng_for(SEED, "looks"), 3)
+    persons = ["near", "far", "bystander"]
+    shapes = render.frame_shapes(camera, [bodies[p] for p in persons], looks,
+                                 [(paddles[p][0], paddles[p][1]) for p in ("near", "far")])
+    redrawn = []
+    for i, frame in enumerate(shapes):
+        ball = play[i : i + 1] if np.isfinite(play[i]).all() else None
+        image, truths = render.render_scene(baked, camera, [ball], frame, None, noise=False, gain=1.03)
+        every, truths_every = render.render_scene(background, camera, [ball, *[p[None] for p in still]],
+                                                  frame, None, noise=False, gain=1.03)
+        np.testing.assert_array_equal(image, every)
+        for mine, theirs in zip(truths, truths_every, strict=True):
+            np.testing.assert_array_equal(mine.pixel, theirs.pixel)
+            assert (mine.visibility, mine.radius_px) == (theirs.visibility, theirs.radius_px)
+        layers = [render._ball_truth_and_layer(background, camera, ball)[1]]
+        redrawn.append(len(render._still_balls_to_redraw(baked.still_balls, frame, layers)))
+    redrawn = np.array(redrawn)  # per frame, the still balls drawn again
+    assert redrawn.sum() >= 200 and (len(still) - redrawn).sum() >= 200
+    assert baked.still_balls.linked[-1, -2]  # the two on the table overlap: drawn again together
 
 
 def test_the_second_ball_follows_the_free_wrist(session, club):

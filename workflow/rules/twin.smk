@@ -100,6 +100,7 @@ rule twin_camera:
         **(
             {"other_balls": "raw/twin_truth/{session}/{cam}_other_balls2d.parquet"}
             if TWIN["room"]["second_ball"] > 0 or TWIN["room"]["floor_balls"] > 0 or TWIN["room"]["rolling_ball"]
+            or TWIN["room"]["table_balls"] > 0
             else {}
         ),
     params:

@@ -12,8 +12,16 @@ import pandas as pd
 
 from pingpong.common.camera import Camera
 from pingpong.frames import ROT_COLUMNS
-from pingpong.twin.render import Background, BallTruth, PlayerLook, encode_jpeg, frame_shapes, render_scene
-from pingpong.twin.room import NO_ROOM, Room, exposure_gains, other_ball_positions
+from pingpong.twin.render import (
+    Background,
+    BallTruth,
+    PlayerLook,
+    encode_jpeg,
+    frame_shapes,
+    render_scene,
+    with_still_balls,
+)
+from pingpong.twin.room import NO_ROOM, OtherBalls, Room, exposure_gains, other_ball_positions
 from pingpong.twin.session import SIDES, ball_positions_at
 from pingpong.twin.truth import JOINT_COLUMNS
 
@@ -21,6 +29,15 @@ EXPOSURE_NS = 4_000_000  # 4 ms shutter: the ball moves 2-5 cm in it, hence the 
 EXPOSURE_SAMPLES = 5
 DISTRACTOR_PERIOD_NS = 20_000_000_000  # the ball bucket stands by the table every other 20 s
 SHAPE_CHUNK = 256  # frames whose shapes are built at once: vectorised, in bounded memory
+# a ball other than the one in play whose image travels less than this over the exposure is drawn from its
+# middle exposure sample (blur below a quarter pixel averages to the middle position, to first order), its
+# truth still the mean of all: twin.room's rolling ball always (0.02-0.13 px at 480x360), its held ball
+# 41-47 % of its frames. Camera 0 of benchmarks/bench_twin_room.py, the room on: 0.19 ms a frame less
+# (median of 4 runs of 600 frames); the frames before JPEG differ from five samples' (and a LUT's gain) in
+# 1.4e-5 of their values (1-3 DN mostly, at most 14: an edge pixel's coverage steps of 1/16 with 4x4
+# subsamples), the held and rolling balls' visibility by at most 0.014, their pixel, radius and centre not
+# at all
+BLUR_MIN_PX = 0.25
 
 
 def render_paddle_rotation(truth_rot: np.ndarray) -> np.ndarray:
@@ -75,7 +92,11 @@ def record_room_camera(camera: Camera, backgrounds: tuple[Background, Background
     pads = _paddles_at(paddles, times)
     balls_rng, lamps_rng = room_rng.spawn(2) if room_rng is not None else (None, None)
     others = other_ball_positions(room, balls_rng, ball, times, offsets, bodies,
-                                  {p: pos for p, (pos, _) in pads.items()}, SIDES) if room.balls else {}
+                                  {p: pos for p, (pos, _) in pads.items()}, SIDES) if room.balls \
+        else OtherBalls({}, {})
+    if others.still:  # drawn into the backgrounds once, not ray cast every frame (render.StillBalls)
+        backgrounds = tuple(with_still_balls(b, camera, list(others.still.values())) for b in backgrounds)
+    travel = {name: _image_travel(camera, p) for name, p in others.moving.items()}
     gains = exposure_gains(room, lamps_rng, gain_rng, times, EXPOSURE_NS / 1e9)
     persons = list(SIDES.values()) + ["bystander"]
     for first in range(0, len(times), SHAPE_CHUNK):
@@ -84,8 +105,8 @@ def record_room_camera(camera: Camera, backgrounds: tuple[Background, Background
                               [(pads[p][0][chunk], pads[p][1][chunk]) for p in SIDES.values()])
         for i, frame in enumerate(shapes, start=first):
             yield _camera_frame(camera, backgrounds, times[i], exposure[i], frame, rng, jpeg_quality,
-                                {name: positions[i] for name, positions in others.items()},
-                                None if gains is None else float(gains[i]))
+                                {name: (p[i], travel[name][i]) for name, p in others.moving.items()},
+                                others.still, None if gains is None else float(gains[i]))
 
 
 def _truth_row(t: int, truth: BallTruth) -> dict:
@@ -93,15 +114,29 @@ def _truth_row(t: int, truth: BallTruth) -> dict:
             "radius_px": truth.radius_px}
 
 
-def _camera_frame(camera, backgrounds, t, exposure, shapes, rng, jpeg_quality, others, gain):
-    # a still ball (on the floor) is drawn from one exposure sample: the same image at a fifth of the cost
-    present = {name: p if np.ptp(p, axis=0).any() else p[:1]
-               for name, p in others.items() if np.isfinite(p).all()}
-    balls = [exposure[np.isfinite(exposure).all(axis=1)], *present.values()]
+def _image_travel(camera: Camera, positions: np.ndarray) -> np.ndarray:
+    """Per frame, the length (px) of the image path of exposure positions (n, K, 3); NaN where not there."""
+    n, k, _ = positions.shape
+    ok = np.isfinite(positions).all(axis=(1, 2))
+    travel = np.full(n, np.nan)
+    if ok.any():
+        px = camera.project(positions[ok].reshape(-1, 3)).reshape(-1, k, 2)
+        travel[ok] = np.linalg.norm(np.diff(px, axis=1), axis=2).sum(axis=1)
+    return travel
+
+
+def _camera_frame(camera, backgrounds, t, exposure, shapes, rng, jpeg_quality, moving, still, gain):
+    present = {name: p for name, (p, _) in moving.items() if np.isfinite(p).all()}
+    centres = {name: p.mean(axis=0) for name, p in present.items()}
+    mid = EXPOSURE_SAMPLES // 2
+    drawn = [p if moving[name][1] >= BLUR_MIN_PX else p[mid:mid + 1] for name, p in present.items()]
+    balls = [exposure[np.isfinite(exposure).all(axis=1)], *drawn]
     background = backgrounds[int((t // DISTRACTOR_PERIOD_NS) % 2)]
     image, truths = render_scene(background, camera, [b if len(b) else None for b in balls], shapes, rng,
-                                 gain=gain)
-    other_rows = [{"time_ns": int(t), "ball": name, **dict(zip("xyz", p.mean(axis=0).tolist(), strict=True)),
+                                 gain=gain, centres=[None, *centres.values()])
+    # render_scene's truths: the balls given, then the background's still balls
+    other_rows = [{"time_ns": int(t), "ball": name, **dict(zip("xyz", centre.tolist(), strict=True)),
                    **_truth_row(t, truth)}
-                  for (name, p), truth in zip(present.items(), truths[1:], strict=True)]
+                  for (name, centre), truth in zip([*centres.items(), *still.items()], truths[1:],
+                                                   strict=True)]
     return int(t), encode_jpeg(image, jpeg_quality), _truth_row(t, truths[0]), other_rows

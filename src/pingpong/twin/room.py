@@ -25,6 +25,10 @@ V >= 110 (twin.render's docstring):
 - `floor_balls`: balls resting on the floor around the court (behind the table ends, 1.7-5 m from the
   net); `rolling_ball`: one more rolling on the floor at 0.1-0.3 m/s (a ball rolling away after a
   rally), reflected at the court's surrounds, never stopping (chosen: the twin has no rolling friction).
+- `table_balls`: balls resting on the table top, each at a place drawn once per session (uniform over the
+  top 5 cm inside its edges and 15 cm or more from the net): a club leaves balls on the tables between
+  rallies and drills (issue 49 asks for balls "rolling or resting on the table and floor"); ball-coloured,
+  ball-sized and still, like the ball in play at a bounce, on the table where it flies.
 - `gain_drift`: the camera's gain drifts slowly, 1 + a (0.6 sin(2 pi t / P1) + 0.4 sin(2 pi t / P2))
   with P1 in 40-90 s and P2 in 8-20 s (an auto-exposure following players in front of bright walls,
   daylight through windows); the amplitude a is chosen (config/twin_room.yaml: 0.08), not measured.
@@ -40,27 +44,33 @@ V >= 110 (twin.render's docstring):
 
 Truth: the ball in play stays alone in raw/twin_truth/{session}/{cam}_ball2d.parquet (a distractor that
 hides it lowers its visibility there); the other balls' truth goes to {cam}_other_balls2d.parquet
-(twin.truth.OTHER_BALLS2D: per frame and ball, named held / floor{k} / rolling, its mid-exposure centre
-x, y, z in the table frame and what a perfect detector would report of it), written only with a ball
-feature on. The static distractors' truth is their geometry (room_lab's Box and Poster).
+(twin.truth.OTHER_BALLS2D: per frame and ball, named held / rolling / floor{k} / table{k}, its
+mid-exposure centre x, y, z in the table frame and what a perfect detector would report of it), written
+only with a ball feature on. The static distractors' truth is their geometry (room_lab's Box and Poster).
 
-Per-frame cost: the extra balls are ray-sphere layers like the ball in play's (a still one from one
-exposure sample, not five); the static distractors are in the cached background (free per frame); the
-gain is one 256-entry cv2.LUT over the image. Measured as process CPU time of bench_twin.py's writing
-loop (render + JPEG + MCAP, 800 frames of camera 0, 480x360, on the shared 2-core machine, median of 5-6
-runs): 2.6 ms a frame with the room off (2.7 ms before this module: unchanged within the noise), 3.7 ms
-with every feature on (1.4x).
+Per-frame cost: the balls at rest (floor, table) are drawn into the camera's backgrounds once
+(twin.render.with_still_balls) and again only in a frame where something overlaps them, the frames of
+drawing them every frame bit for bit; the moving ones (held, rolling) are ray-sphere layers like the ball
+in play's, from their middle exposure sample where their image moves less than twin.cameras.BLUR_MIN_PX
+over the exposure; the static distractors are in the cached background; the gain is one
+cv2.convertScaleAbs over the image. CPU time of rendering + JPEG a frame, camera 0 at 480x360, 600 frames,
+median of 5 alternating runs on the shared 2-core machine (PYTHONPATH=src python
+benchmarks/bench_twin_room.py --repeats 5): room off 2.41 ms, every feature of config/twin_room.yaml on
+3.15 ms (+0.74; before, each ball ray cast every frame and a LUT for the gain: 2.56 and 4.29, +1.73,
+without the table ball).
 Failure modes: a held ball's hand whose elbow or wrist is NaN holds nothing that frame; the rolling ball
-passes under the table, where only the table top hides it (the legs do not).
+passes under the table, where only the table top hides it (the legs do not); the ball in play flies
+through a table ball (the twin's balls do not meet).
 """
 
 from collections.abc import Mapping
 from dataclasses import dataclass, fields, replace
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
 
-from pingpong.frames import BALL_RADIUS
+from pingpong.frames import BALL_RADIUS, TABLE_HALF_LENGTH, TABLE_HALF_WIDTH
 from pingpong.twin.render import HAND_RADIUS, HANDS, ROOM, Box, Lab, PlayerLook, Poster, hsv_to_bgr
 from pingpong.twin.rig import FLOOR_Z
 
@@ -70,6 +80,8 @@ SIGN_MARK_HSV = (12, 220, 220)  # printed ball-orange
 SIGN_MARK_RADIUS = 0.06  # m
 ORANGE_SHIRT_HSV = (14, 185, 175)
 COURT_HALF = (3.2, 5.5)  # x, y of the court surrounds (twin.render.make_lab's barriers), m
+TABLE_BALL_MARGIN = 0.05  # m: a table ball's centre this far inside the top's edges (all of it on the top)
+NET_CLEARANCE = 0.15  # m: and this far from the net's plane (clear of the net and its posts' clamps)
 
 
 @dataclass(frozen=True)
@@ -82,6 +94,7 @@ class Room:
     second_ball: float = 0.0
     floor_balls: int = 0
     rolling_ball: bool = False
+    table_balls: int = 0
     gain_drift: float = 0.0
     flicker: float = 0.0
     mains_hz: float = 50.0
@@ -93,7 +106,7 @@ class Room:
     @property
     def balls(self) -> bool:
         """Whether there are balls other than the one in play (and so their truth table)."""
-        return self.second_ball > 0 or self.floor_balls > 0 or self.rolling_ball
+        return self.second_ball > 0 or self.floor_balls > 0 or self.rolling_ball or self.table_balls > 0
 
     @property
     def exposure(self) -> bool:
@@ -165,19 +178,30 @@ def _reflect(p: np.ndarray, lo: float, hi: float) -> np.ndarray:
     return lo + np.where(q > span, 2 * span - q, q)
 
 
+class OtherBalls(NamedTuple):
+    """The balls other than the one in play, by name: moving ones' exposure positions (n, K, 3) (NaN: not
+    there), still ones' resting centres (3,); table frame, m."""
+
+    moving: dict[str, np.ndarray]
+    still: dict[str, np.ndarray]
+
+
 def other_ball_positions(room: Room, rng: np.random.Generator, ball: pd.DataFrame, times: np.ndarray,
                          offsets: np.ndarray, bodies: Mapping[str, np.ndarray],
-                         paddles: Mapping[str, np.ndarray], sides: Mapping[int, str]
-                         ) -> dict[str, np.ndarray]:
-    """Exposure positions (n, K, 3) of every ball other than the one in play, by name; NaN: not there.
+                         paddles: Mapping[str, np.ndarray], sides: Mapping[int, str]) -> OtherBalls:
+    """Every ball other than the one in play: held and rolling ones moving, those on the floor and the
+    table still.
 
     times: frame times (n,) ns; offsets: exposure sample offsets (K,) ns; bodies: BODY_25 joints (n, 25, 3)
     per person at the frame times; paddles: positions (n, 3) per player; sides: side -> player name.
-    rng: the session's room stream (the same for every camera: one world).
+    rng: the session's room stream (the same for every camera: one world). The table balls come from a
+    stream of their own (spawned, which draws nothing from rng): the other balls are where they were
+    before table_balls existed.
     """
     frame_s = (times - times[0]) / 1e9
     sample_s = frame_s[:, None] + offsets[None] / 1e9
-    out = {}
+    moving, still = {}, {}
+    table_rng = rng.spawn(1)[0]
     servers = rally_servers(ball)
     holds = rng.random(len(servers)) < room.second_ball  # drawn whatever the share: same world for any
     if room.second_ball > 0:
@@ -188,10 +212,10 @@ def other_ball_positions(room: Room, rng: np.random.Generator, ball: pd.DataFram
             frames = (times >= rally["start"]) & (times <= rally["end"])
             player = sides[int(rally["side"])]
             held[frames] = free_hand_ball(bodies[player][frames], paddles[player][frames])
-        out["held"] = _at_times(held, frame_s, sample_s)
+        moving["held"] = _at_times(held, frame_s, sample_s)
     for k in range(room.floor_balls):
         x, y = rng.uniform(-2.8, 2.8), rng.choice([-1, 1]) * rng.uniform(1.7, 5.0)
-        out[f"floor{k}"] = np.broadcast_to([x, y, FLOOR_Z + BALL_RADIUS], sample_s.shape + (3,)).copy()
+        still[f"floor{k}"] = np.array([x, y, FLOOR_Z + BALL_RADIUS])
     if room.rolling_ball:
         start = rng.uniform([-2.8, -5.0], [2.8, 5.0])
         heading = rng.uniform(0, 2 * np.pi)
@@ -199,8 +223,13 @@ def other_ball_positions(room: Room, rng: np.random.Generator, ball: pd.DataFram
         reach = np.array(COURT_HALF) - BALL_RADIUS - 0.05  # the surrounds' boards are 4 cm thick
         x = _reflect(start[0] + speed * np.cos(heading) * sample_s, -reach[0], reach[0])
         y = _reflect(start[1] + speed * np.sin(heading) * sample_s, -reach[1], reach[1])
-        out["rolling"] = np.stack([x, y, np.full_like(x, FLOOR_Z + BALL_RADIUS)], axis=-1)
-    return out
+        moving["rolling"] = np.stack([x, y, np.full_like(x, FLOOR_Z + BALL_RADIUS)], axis=-1)
+    for k in range(room.table_balls):
+        x = table_rng.uniform(-1, 1) * (TABLE_HALF_WIDTH - TABLE_BALL_MARGIN)
+        y = table_rng.choice([-1, 1]) * table_rng.uniform(NET_CLEARANCE,
+                                                          TABLE_HALF_LENGTH - TABLE_BALL_MARGIN)
+        still[f"table{k}"] = np.array([x, y, BALL_RADIUS])  # resting on the top (z = 0)
+    return OtherBalls(moving, still)
 
 
 # -------------------------------------------------------------------------------------- exposure
