@@ -153,12 +153,31 @@ short stream, linking and judging 0.2 ms), 0.55 of the colour method's 293 (whic
 window's rows while it tracks the ball); 480x360, 325 frames/s (3.1 ms), 0.23 of colour's 1,423. With
 `grown` and the fresh ranking (0054170 and after, the same command): 1280x720 168 frames/s, 0.49 of
 colour's 344; 480x360 304 frames/s, 0.25 of colour's 1,239 (the machine busier than before: colour
-fell too). Where 480x360's time goes (cProfile of detect_stream on the twin's camera 0, 1,500 frames,
+fell too). Where 480x360's time went (cProfile of detect_stream on the twin's camera 0, 1,500 frames,
 5.4 s): JPEG decoding 28 %, the HSV and grey conversions 9 %, the colour tests' inRange 8 %, blobs
-(findContours, drawContours, _blobs) 14 %, the rest numpy and Python per blob; so the colour test
-restricted to the moving mask's boxes could save at most ~a quarter. Issue 49's bar is 100 frames/s per
-core at 1280x720 with decoding. An H.264 video is decoded whole by PyAV and
-shrunk (io.camera_streams.VideoFrame): not measured here.
+(findContours, drawContours, _blobs) 14 %, the rest numpy and Python per blob. Made cheaper with the
+same output (the DETECTIONS and BALL_CANDIDATES tables value for value those of 6fb8228 on the
+benchmark's streams at both sizes, tests/test_ball_track.py's twin camera 0 and twin.room seeds 5 and 6,
+cameras 0-3, 1,422-3,340 frames each): the moving mask first, then HSV and the colour tests only on its
+pixels inside the BGR box of the colours the tests pass (`_moving_colour`, `_bgr_box`: the orange ball's
+loosened test B 0-135, G 21-212, R 82-255, 27 % of all colours; 0.45 -> 0.29 ms a frame); HSV only
+around the blobs; a washed blob skipped before it is drawn where its box holds no pixel at the blur
+test's peak saturation (27 of the benchmark's 29 blobs a frame); the loosened mask cleared around each
+colour-test blob on its patch (a whole-frame dilation and boolean index: 0.1-0.3 ms); a track's fit
+made once (3 of 4 predictions are of a track carried over a frame without a point); _pruned choosing
+only among tracks that share their last 3 points; np.cov and np.median by their own operations
+(detection._covariance, _median: the same floats). `bench_ball_detectors.py --sizes 480x360 --against
+6fb8228` (this and the revision in the same rounds): 480x360 385 against 320 frames/s, 1.20x (2.60
+ms a frame; 0.26 of colour's 1,462); 1280x720 164 against 158 frames/s, 1.04x (measured in one process
+as --against does, best of 2). On twin.room (seed 5 camera 2, 1,500 frames, the stream of
+tests/test_ball_track.py's twin.room test, the same way): 5.21 -> 3.86 ms a frame, 1.35x (3 to 4
+times the plain twin's blobs and tracks). Not 2x at 480x360: what is left (each stage timed on the
+benchmark's 480x360 stream, 2.6 ms) is JPEG decoding 0.9 ms and the scene image's decodes 0.1 ms, the
+running background (a float32 mean, its difference and update over the whole frame) 0.23 ms, the
+candidates 1.2 ms (the masks 0.3, 2 findContours 0.15, per blob the rest), linking 0.1 ms; decoding
+and the background alone are 1.2 ms, and a cheaper decode (a reduced one, or row bands) changes what
+is found. Issue 49's bar is 100 frames/s per core at 1280x720 with decoding. An H.264 video is decoded
+whole by PyAV and shrunk (io.camera_streams.VideoFrame): not measured here.
 
 Failure modes (by construction): a ball that rests, or moves slower than min_speed_px_s without a
 measurable fall over a quarter of its track, is never reported (the ball in play moves and falls); a
@@ -185,6 +204,7 @@ from pingpong.perception.detection import (
     CORE_PX,
     REFERENCE_WIDTH,
     BallDetector,
+    _around,
     _blobs,
     _fill,
     _in_colour_range,
@@ -239,7 +259,6 @@ def track_reduction(width: int) -> int:
     return next((r for r in (8, 4, 2) if width / r >= TRACK_WIDTH_PX), 1)
 
 
-@functools.lru_cache(maxsize=8)  # per frame otherwise: 0.007 ms
 def loosened(detector: BallDetector, settings: TrackSettings) -> BallDetector:
     """The colour test of `detector` loosened for a washed ball's pixels: its blur test's saturation floor
     (detection's "Fast far balls") and its value floor times washed_value_factor, with no scene contrast
@@ -287,22 +306,24 @@ def frame_candidates(image: np.ndarray, reduction: int, detector: BallDetector, 
     blobs touching the image's border (the skin test's ring is cut there, and a ball cut by the border is
     centred on its visible part)."""
     height, width = image.shape[:2]
-    strict, loose = _moving_colour(image, moving, (detector, loosened(detector, settings)))
+    strict, loose, peaks = _moving_colour(image, moving, _colour_tests(detector, settings))
     hsv = np.empty_like(image)  # HSV only around the blobs (_hsv_around): all that is read of it
     min_area, max_area, _ = detector.scaled(width)
     if reduction > 1:
         min_area *= detector.candidate_area
-    found, taken = [], np.zeros_like(strict)
+    found = []
     for x, y, w, h, blob, area in _blobs(strict, min_area, np.inf):
         _hsv_around(image, hsv, x, y, w, h)
         reason = "size" if area > max_area else "colour" if \
             detector.seams and _is_seam(hsv, x, y, blob, detector.saturation_min) else ""
         found.append((x, y, blob, area, reason))
-        taken[y:y + h, x:x + w] |= blob
-    # a washed ball's blob: of the loosened test with a pixel at the blur test's peak, apart from those above
-    loose[cv2.dilate(taken, _APART) > 0] = 0
+        # a washed ball's blob lies apart from these: the blob and 2 px around it (_APART) leave `loose`, on
+        # the blob's patch (a mask of the whole frame dilated and indexed: 0.1-0.3 ms a frame at 480x360)
+        _, _, patch, core = _around(loose, x, y, blob, _APART.shape[0] // 2)
+        patch[cv2.dilate(core, _APART) > 0] = 0
+    # a washed ball's blob: of the loosened test with a pixel at the blur test's peak
     washed_area = detector.blur_max_area_px * (width / REFERENCE_WIDTH) ** 2
-    for x, y, w, h, blob, area in _blobs(loose, min_area, washed_area):
+    for x, y, w, h, blob, area in _blobs(loose, min_area, washed_area, seeds=peaks):
         _hsv_around(image, hsv, x, y, w, h)
         if hsv[y:y + h, x:x + w, 1][blob > 0].max() >= detector.blur_peak_saturation:
             found.append((x, y, blob, area, "colour" if _skin_without_core(hsv, x, y, blob, detector, width)
@@ -316,6 +337,15 @@ def frame_candidates(image: np.ndarray, reduction: int, detector: BallDetector, 
     else:
         found = [(*blob, 1.0) for blob in found]
     return _ranked(hsv, found, reduction, detector, settings)
+
+
+@functools.lru_cache(maxsize=8)  # per frame otherwise: 0.007 ms each
+def _colour_tests(detector: BallDetector, settings: TrackSettings) -> tuple[BallDetector, ...]:
+    """The colour tests of frame_candidates: the detector's, the loosened one, and the loosened one's pixels
+    at the blur test's peak saturation, unopened (a washed blob needs one of these: a blob whose box
+    holds none is skipped undrawn, 27 of the 29 blobs a frame on bench_ball_detectors.py's 480x360 stream)."""
+    loose = loosened(detector, settings)
+    return detector, loose, replace(loose, saturation_min=detector.blur_peak_saturation, open_px=0.0)
 
 
 def _moving_colour(image: np.ndarray, moving: np.ndarray, tests: tuple[BallDetector, ...]) -> list:
