@@ -721,11 +721,6 @@ def _restore_table(image: np.ndarray, background: Background, shape: _Shape) -> 
         np.copyto(image[y0:y1, x0:x1], background.image[y0:y1, x0:x1], where=in_front[..., None])
 
 
-def _overlaps(shape: _Shape, x0: int, y0: int, w: int, h: int) -> bool:
-    sx0, sy0, sx1, sy1 = shape.bbox
-    return sx0 < x0 + w and sy0 < y0 + h and sx1 > x0 and sy1 > y0
-
-
 def render_frame(background: Background, camera: Camera, ball_positions: np.ndarray | None,
                  players_joints: Sequence[np.ndarray], paddles: Sequence[tuple[np.ndarray, np.ndarray]],
                  rng: np.random.Generator, *, looks: Sequence[PlayerLook] | None = None,
@@ -827,19 +822,27 @@ def _draw_balls(image: np.ndarray, background: Background, camera: Camera, prepa
         else ([], [], [])
     pending = sorted((i for i, layer in enumerate(layers) if layer is not None), key=lambda i: -depths[i])
     drawn: list[tuple[int, np.ndarray]] = []  # (ball, its occluder mask), farthest first
+    boxes = np.array([shape.bbox for shape in shapes], dtype=np.int64).reshape(-1, 4)
+    # per shape, the drawn balls (and their occluder masks) whose box it overlaps: one array test per ball
+    # instead of a test per shape and ball (twin.room's extra balls made those ~120 Python calls a frame)
+    covering: dict[int, list[tuple[int, np.ndarray]]] = {}
 
-    def composite_behind(depth: float) -> None:
-        """Draw the pending balls farther than depth, farthest first."""
+    def composite_behind(depth: float, next_shape: int) -> None:
+        """Draw the pending balls farther than depth, farthest first (the shapes from next_shape on are
+        nearer)."""
         while pending and depth < depths[pending[0]]:
             i = pending.pop(0)
             for j, occluders in drawn:  # the balls drawn before lie behind this one
                 _hide_behind(occluders, layers[j], layers[i])
             drawn.append((i, _composite_ball(image, layers[i])))
+            box = np.array([_layer_box(layers[i])])
+            for k in (np.flatnonzero(_boxes_overlap(boxes[next_shape:], box)[:, 0]) + next_shape).tolist():
+                covering.setdefault(k, []).append(drawn[-1])
 
     tx0, ty0, tx1, ty1, nearest = background.table_box
-    for shape in shapes:
+    for k, shape in enumerate(shapes):
         if pending:
-            composite_behind(shape.depth)
+            composite_behind(shape.depth, k)
         shape.draw(image, shape.colour)
         # _restore_table's own first tests, here: most shapes are nearer than the table or beside it,
         # and a call per shape cost more than the test
@@ -847,10 +850,9 @@ def _draw_balls(image: np.ndarray, background: Background, camera: Camera, prepa
             sx0, sy0, sx1, sy1 = shape.bbox
             if sx0 < tx1 and sy0 < ty1 and sx1 > tx0 and sy1 > ty0:
                 _restore_table(image, background, shape)
-        for i, occluders in drawn:
-            if _overlaps(shape, layers[i][0], layers[i][1], *occluders.shape[::-1]):
-                shape.draw(occluders, 255, offset=layers[i][:2])
-    composite_behind(-np.inf)
+        for i, occluders in covering.get(k, ()):
+            shape.draw(occluders, 255, offset=layers[i][:2])
+    composite_behind(-np.inf, len(shapes))
     for i, occluders in drawn:
         x0, y0, _, alpha, unoccluded = layers[i]
         visible = alpha * (occluders == 0)
@@ -888,7 +890,7 @@ def _layer_box(layer) -> tuple[int, int, int, int]:
 
 
 def _boxes_overlap(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(n, m) whether boxes a (n, 4) and b (m, 4) (x0, y0, x1, y1, exclusive) share a pixel (_overlaps')."""
+    """(n, m) whether boxes a (n, 4) and b (m, 4) (x0, y0, x1, y1, exclusive) share a pixel."""
     a, b = a[:, None], b[None, :]
     return (a[..., 0] < b[..., 2]) & (a[..., 1] < b[..., 3]) & (a[..., 2] > b[..., 0]) \
         & (a[..., 3] > b[..., 1])
