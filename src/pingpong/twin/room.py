@@ -53,11 +53,17 @@ Per-frame cost: the balls at rest (floor, table) are drawn into the camera's bac
 drawing them every frame bit for bit; the moving ones (held, rolling) are ray-sphere layers like the ball
 in play's, from their middle exposure sample where their image moves less than twin.cameras.BLUR_MIN_PX
 over the exposure; the static distractors are in the cached background; the gain is one
-cv2.convertScaleAbs over the image. CPU time of rendering + JPEG a frame, camera 0 at 480x360, 600 frames,
-median of 5 alternating runs on the shared 2-core machine (PYTHONPATH=src python
-benchmarks/bench_twin_room.py --repeats 5): room off 2.41 ms, every feature of config/twin_room.yaml on
-3.15 ms (+0.74; before, each ball ray cast every frame and a LUT for the gain: 2.56 and 4.29, +1.73,
-without the table ball).
+cv2.convertScaleAbs over the image. CPU time of rendering + JPEG a frame at 480x360, 600 frames, median of
+5 alternating runs on the shared 2-core machine (PYTHONPATH=src python benchmarks/bench_twin_room.py
+--repeats 5 --camera C), room off / every feature of config/twin_room.yaml on: camera 0 2.41 / 3.15 ms
+(+0.74), camera 2 2.20 / 2.78 ms (+0.59); before (each ball ray cast every frame, a LUT for the gain, no
+table ball) camera 0 2.56 / 4.29 (+1.73), camera 2 1.96 / 3.05 (+1.09). What is left: the held ball's
+five-sample ray cast (55 % of its frames) and the rolling ball's one-sample one, 0.2-0.3 ms each a frame,
+and the gain, 0.08 ms; ray casting a chunk of frames' one-sample balls in arrays at once cost more (0.44
+ms a ball: every ray of a box through every step, where _ball_layer shades only the rays that hit).
+Same look: the still balls' pixels and truth are those of drawing them every frame, bit for bit; with the
+one-sample rule and the gain's rounding, frames before JPEG differ in 1.4e-5 of their values (camera 0,
+1,494 frames; twin.cameras.BLUR_MIN_PX says how).
 Failure modes: a held ball's hand whose elbow or wrist is NaN holds nothing that frame; the rolling ball
 passes under the table, where only the table top hides it (the legs do not); the ball in play flies
 through a table ball (the twin's balls do not meet).
