@@ -1,5 +1,5 @@
 """The club room's cost (config twin.room): CPU time a frame of one camera's rendering + JPEG encoding, with
-every room feature on (config/twin_room.yaml) and off, side by side on the same session and camera.
+every room feature on (config/config.yaml's twin.room) and off, side by side on the same session and camera.
 
 CPU time (time.process_time) of record_room_camera's loop, which renders and encodes each frame; the
 backgrounds are rendered before the clock starts (once per camera in the pipeline, not per frame). Each
@@ -21,7 +21,7 @@ from pingpong.twin.cameras import record_room_camera
 from pingpong.twin.rig import make_rig
 from pingpong.twin.session import FaultRates, simulate_session
 
-ROOM_YAML = "config/twin_room.yaml"
+ROOM_YAML = "config/config.yaml"  # the default run's room
 
 
 def cpu_ms_per_frame(session, camera, features: room.Room, frames: int, seed: int = 1) -> float:

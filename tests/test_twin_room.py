@@ -3,7 +3,7 @@ colour; the second ball in the server's free hand; the ball in play's truth unto
 the same seed; and the old colour detector measurably worse on the room's stream than on the plain twin's.
 
 One camera (480x360, JPEG q90) of a 2-rally session (3,340 frames), rendered with every feature on
-(config/twin_room.yaml's values, the second ball in every rally) and off.
+(config/config.yaml's twin.room, the second ball in every rally) and off.
 """
 
 import itertools
@@ -34,7 +34,7 @@ WIDTH, HEIGHT = 480, 360
 VISIBLE = 0.5  # visibility from which a ball counts as visible (tests/test_detection.py's)
 FALSE_PX = 5.0  # a detection further than this from the ball in play is false (the issue's twin bar)
 ROOM = room.Room.from_config(
-    {**yaml.safe_load((ROOT / "config" / "twin_room.yaml").read_text())["twin"]["room"], "second_ball": 1.0}
+    {**yaml.safe_load((ROOT / "config" / "config.yaml").read_text())["twin"]["room"], "second_ball": 1.0}
 )
 
 

@@ -1,7 +1,8 @@
 """A club room without green screens (issue 49): what makes the twin's images hard for a ball detector.
 
-Config `twin.room` (config/schema.yaml), every feature off by default; config/twin_room.yaml turns all
-on. Off, the twin's bytes are those without this module (twin.render draws nothing extra, calls no rng).
+Config `twin.room` (config/schema.yaml), every feature off by default; config/config.yaml (the default
+run) turns all on, config/green_screen.yaml (the paper's lab) off. Off, the twin's bytes are those
+without this module (twin.render draws nothing extra, calls no rng).
 Each feature copies something seen in issue 49's real club clip (static camera, 1280x720, 30 fps,
 orange ball, no green screens), where the colour detector found 33 % of the free balls and 47 % of its
 detections were not a ball; colours are OpenCV HSV against the detector's window H 8-19, S >= 170,
@@ -31,15 +32,15 @@ V >= 110 (twin.render's docstring):
   ball-sized and still, like the ball in play at a bounce, on the table where it flies.
 - `gain_drift`: the camera's gain drifts slowly, 1 + a (0.6 sin(2 pi t / P1) + 0.4 sin(2 pi t / P2))
   with P1 in 40-90 s and P2 in 8-20 s (an auto-exposure following players in front of bright walls,
-  daylight through windows); the amplitude a is chosen (config/twin_room.yaml: 0.08), not measured.
+  daylight through windows); the amplitude a is chosen (config/config.yaml: 0.08), not measured.
 - `flicker`: lamps on AC mains flicker at twice the mains frequency (IEEE Std 1789-2015; Lehman et al.
   2011, "Proposing measures of flicker in the low frequencies for lighting applications"): light
-  1 + m cos(2 pi 2 f_mains t + phi), m the lamps' percent flicker / 100 (config/twin_room.yaml: 0.10,
+  1 + m cos(2 pi 2 f_mains t + phi), m the lamps' percent flicker / 100 (config/config.yaml: 0.10,
   chosen: electronic ballasts and good LED drivers stay below, magnetically ballasted fluorescents
   well above). Integrated over the 4 ms shutter the frame's gain is 1 + m sinc(2 f_mains T) cos(...)
   (sinc 0.76 at 100 Hz). At 100 frames/s, 120 Hz flicker (60 Hz mains) beats at 20 Hz, changing
   brightness from frame to frame; 100 Hz flicker (50 Hz mains) aliases to a constant, so
-  config/twin_room.yaml uses 60 Hz. The flicker's phase is the room's (one per session), the drift
+  config/config.yaml uses 60 Hz. The flicker's phase is the room's (one per session), the drift
   each camera's.
 
 Truth: the ball in play stays alone in raw/twin_truth/{session}/{cam}_ball2d.parquet (a distractor that
@@ -55,7 +56,7 @@ in play's, from their middle exposure sample where their image moves less than t
 over the exposure; the static distractors are in the cached background; the gain is one
 cv2.convertScaleAbs over the image. CPU time of rendering + JPEG a frame at 480x360, 600 frames, median of
 5 alternating runs on the shared 2-core machine (PYTHONPATH=src python benchmarks/bench_twin_room.py
---repeats 5 --camera C), room off / every feature of config/twin_room.yaml on: camera 0 2.41 / 3.15 ms
+--repeats 5 --camera C), room off / every feature of config/config.yaml's room on: camera 0 2.41 / 3.15 ms
 (+0.74), camera 2 2.20 / 2.78 ms (+0.59); before (each ball ray cast every frame, a LUT for the gain, no
 table ball) camera 0 2.56 / 4.29 (+1.73), camera 2 1.96 / 3.05 (+1.09). What is left: the held ball's
 five-sample ray cast (55 % of its frames) and the rolling ball's one-sample one, 0.2-0.3 ms each a frame,
