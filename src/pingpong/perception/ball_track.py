@@ -156,28 +156,27 @@ colour's 344; 480x360 304 frames/s, 0.25 of colour's 1,239 (the machine busier t
 fell too). Where 480x360's time went (cProfile of detect_stream on the twin's camera 0, 1,500 frames,
 5.4 s): JPEG decoding 28 %, the HSV and grey conversions 9 %, the colour tests' inRange 8 %, blobs
 (findContours, drawContours, _blobs) 14 %, the rest numpy and Python per blob. Made cheaper with the
-same output (the DETECTIONS and BALL_CANDIDATES tables value for value those of 6fb8228 on the
-benchmark's streams at both sizes, tests/test_ball_track.py's twin camera 0 and twin.room seeds 5 and 6,
-cameras 0-3, 1,422-3,340 frames each): the moving mask first, then HSV and the colour tests only on its
-pixels inside the BGR box of the colours the tests pass (`_moving_colour`, `_bgr_box`: the orange ball's
-loosened test B 0-135, G 21-212, R 82-255, 27 % of all colours; 0.45 -> 0.29 ms a frame); HSV only
-around the blobs; a washed blob skipped before it is drawn where its box holds no pixel at the blur
-test's peak saturation (27 of the benchmark's 29 blobs a frame); the loosened mask cleared around each
-colour-test blob on its patch (a whole-frame dilation and boolean index: 0.1-0.3 ms); a track's fit
-made once (3 of 4 predictions are of a track carried over a frame without a point); _pruned choosing
-only among tracks that share their last 3 points; np.cov and np.median by their own operations
-(detection._covariance, _median: the same floats). `bench_ball_detectors.py --sizes 480x360 --against
-6fb8228` (this and the revision in the same rounds): 480x360 385 against 320 frames/s, 1.20x (2.60
-ms a frame; 0.26 of colour's 1,462); 1280x720 164 against 158 frames/s, 1.04x (measured in one process
-as --against does, best of 2). On twin.room (seed 5 camera 2, 1,500 frames, the stream of
-tests/test_ball_track.py's twin.room test, the same way): 5.21 -> 3.86 ms a frame, 1.35x (3 to 4
-times the plain twin's blobs and tracks). Not 2x at 480x360: what is left (each stage timed on the
-benchmark's 480x360 stream, 2.6 ms) is JPEG decoding 0.9 ms and the scene image's decodes 0.1 ms, the
-running background (a float32 mean, its difference and update over the whole frame) 0.23 ms, the
-candidates 1.2 ms (the masks 0.3, 2 findContours 0.15, per blob the rest), linking 0.1 ms; decoding
-and the background alone are 1.2 ms, and a cheaper decode (a reduced one, or row bands) changes what
-is found. Issue 49's bar is 100 frames/s per core at 1280x720 with decoding. An H.264 video is decoded
-whole by PyAV and shrunk (io.camera_streams.VideoFrame): not measured here.
+same output (the DETECTIONS and BALL_CANDIDATES tables value for value those of 6fb8228 on the benchmark's
+streams at both sizes, tests/test_ball_track.py's twin camera 0 and twin.room seeds 5 and 6, cameras 0-3,
+1,422-3,340 frames each): the moving mask first, then HSV and the colour tests only on its pixels inside the
+BGR box of the colours the tests pass (`_moving_colour`, `_bgr_box`: the orange ball's loosened test B 0-135,
+G 21-212, R 82-255, 27 % of all colours; 0.45 -> 0.29 ms a frame); HSV only around the blobs; a washed blob
+skipped before it is drawn where its box holds no pixel at the blur test's peak saturation (27 of the
+benchmark's 29 blobs a frame); the loosened mask cleared around each colour-test blob on its patch (a
+whole-frame dilation and boolean index: 0.1-0.3 ms); a track's fit made once (3 of 4 predictions are of a
+track carried over a frame without a point); _pruned choosing only among tracks that share their last 3
+points; np.cov and np.median by their own operations (detection._covariance, _median: the same floats).
+`bench_ball_detectors.py --sizes 480x360 --against 6fb8228` (this and the revision in the same rounds):
+480x360 385 against 320 frames/s, 1.20x (2.60 ms a frame; 0.26 of colour's 1,462); with --sizes 1280x720, 165
+against 146 frames/s, 1.13x (6.07 ms; 0.48 of colour's 340). On twin.room (seed 5 camera 2, 1,500 frames, the
+stream of tests/test_ball_track.py's twin.room test, timed as --against does in one process, best of 2): 5.21
+-> 3.86 ms a frame, 1.35x (3 to 4 times the plain twin's blobs and tracks). Not 2x at 480x360: what is left
+(each stage timed on the benchmark's 480x360 stream, 2.6 ms) is JPEG decoding 0.9 ms and the scene image's
+decodes 0.1 ms, the running background (a float32 mean, its difference and update over the whole frame) 0.23
+ms, the candidates 1.2 ms (the masks 0.3, 2 findContours 0.15, per blob the rest), linking 0.1 ms; decoding
+and the background alone are 1.2 ms, and a cheaper decode (a reduced one, or row bands) changes what is found.
+Issue 49's bar is 100 frames/s per core at 1280x720 with decoding. An H.264 video is decoded whole by PyAV and
+shrunk (io.camera_streams.VideoFrame): not measured here.
 
 Failure modes (by construction): a ball that rests, or moves slower than min_speed_px_s without a
 measurable fall over a quarter of its track, is never reported (the ball in play moves and falls); a
