@@ -25,7 +25,8 @@ are triangulated from exactly these views. Cost: 0.04 ms a frame of 3 cameras (o
 twin.room below: 8,442 frames, 105k candidates; 0.025 ms without candidates).
 
 Measured on the tiny run with twin.room (`snakemake -c2 reports/tables/perception_accuracy.md --configfile
-config/test/tiny.yaml config/twin_room.yaml`, cameras 0-2, 8,442 frames): recall of the visible ball 97.04 /
+config/test/tiny.yaml config/twin_room.yaml` at ed9973c, the room since 33196b3 config/config.yaml's
+with one more ball at rest on the table; cameras 0-2, 8,442 frames): recall of the visible ball 97.04 /
 99.04 / 98.47 % -> 99.88 / 99.93 / 99.68 %, false detections 0.20 / 0.09 / 0.28 % -> 0.14 / 0.09 / 0.09 %
 (of frames, within 5 px: reports.perception_accuracy); 3D ball median error 1.379 -> 1.384 mm (p99 7.8 mm,
 max 32 mm both), 6,865 -> 6,957 points in flight (before: 6fb8228's rescue_views alone). Most of the
