@@ -17,7 +17,7 @@ from pingpong.twin.session import ball_positions_at
 CAPTION = """Each perception stage measured against the digital twin's ground truth over every session
 of this run, beside the threshold the perception tests hold it to (`ok`). Calibration: the worse of
 the intrinsic and extrinsic reprojection RMS, and the calibrated camera centre against the true one.
-Detection: each camera's own ball detector (rows "{session} {cam} ball ..."): recall on frames
+Detection: each camera's own ball detector alone (rows "{session} {cam} one-view ..."): recall on frames
 where at least half of the ball shows, median centre error on those, and detections with no ball
 within 5 px. Multi-view (rows "{session} {cam} multi-view ..."): the same figures, with the same
 thresholds, of each camera's 2D ball after the cameras' agreement (interim/ball_views/: its detection
@@ -37,7 +37,8 @@ def main(ctx):
         for c, cam in enumerate(p["cams"]):
             j = k * n_cams + c  # detections and pixel truth are listed session by session
             truth2d = read_table(i.ball2d[j], truth.BALL2D)
-            rows += acc.detection_rows(f"{session} {cam}", read_table(i.detections[j], DETECTIONS), truth2d)
+            rows += acc.detection_rows(f"{session} {cam} one-view", read_table(i.detections[j], DETECTIONS),
+                                       truth2d)
             views = read_table(Path(i.ball_views[k]) / f"{cam}.parquet", DETECTIONS)
             rows += acc.detection_rows(f"{session} {cam} multi-view", views, truth2d)
         ball3d = read_table(i.ball3d[k], BALL3D)
