@@ -18,7 +18,7 @@ from pingpong.io.camera_streams import CameraFrame
 from pingpong.perception.ball_flight import FlightRule, ball_verdict, drop_phantoms, phantom_reasons
 from pingpong.perception.calibration import load_cameras
 from pingpong.perception.detection import BallDetector, detect_stream
-from pingpong.perception.schemas import BALL3D, DETECTIONS
+from pingpong.perception.schemas import BALL3D, BALL_CANDIDATES, DETECTIONS
 from pingpong.perception.triangulation import ball3d_table, reprojection_gate_px
 from pingpong.stages import triangulation as triangulation_stage
 from pingpong.twin import truth
@@ -158,16 +158,20 @@ def test_bad_input_is_refused():
 
 
 def test_the_tiny_runs_balls_are_kept(tiny_run):
-    """The tiny run's detections triangulated as the stage does, then the flight rule: almost every 3D ball
-    in play is kept. A ball dying on the table (hopping or rolling within 5 cm of it at under 1 m/s, as
-    the harder twin's rallies often end: 0.2-0.8 m/s at z = 2-4 cm on the tiny run of 2026-12-04, hops a
-    few frames apart that no window fits) is no flight and may go; so may a lone frame or a drop to the
-    floor. What the rule loses in play is a few points beside a smash's bounce (14-19 m/s)."""
+    """The tiny run's detections and candidates triangulated as the stage does, then the flight rule:
+    almost every 3D ball in play is kept. A ball dying on the table (hopping or rolling within 5 cm of it
+    at under 1 m/s, as the harder twin's rallies often end: 0.2-0.8 m/s at z = 2-4 cm on the tiny run of
+    2026-12-04, hops a few frames apart that no window fits) is no flight and may go; so may a lone frame
+    or a drop to the floor. What the rule loses in play is a few points beside a smash's bounce (14-19
+    m/s)."""
     cams, _ = load_cameras(tiny_run / "interim" / "calibration" / "cameras.json")
     dets = [read_table(tiny_run / "interim" / "detections" / "s00" / f"{c.name}.parquet", DETECTIONS)
             for c in cams]
+    candidates = [read_table(tiny_run / "interim" / "ball_candidates" / "s00" / f"{c.name}.parquet",
+                             BALL_CANDIDATES) for c in cams]
     agreed = ball3d_table(cams, dets, reprojection_gate_px(cams, DEFAULTS["perception"]["max_reproj_share"]),
-                          DEFAULTS["perception"]["min_views"])
+                          DEFAULTS["perception"]["min_views"], candidates,
+                          DEFAULTS["perception"]["ball_pair_min_frames"])
     kept, counts = drop_phantoms(agreed, RULE)
     seen = agreed["x"].notna().to_numpy()
     dropped = seen & kept["x"].isna().to_numpy()
