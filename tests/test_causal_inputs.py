@@ -60,7 +60,8 @@ def perturbed(tables, cut_ns: int, rng: np.random.Generator):
     ball3d.loc[late, ["x", "y", "z"]] += rng.normal(0, 0.3, (late.sum(), 3))
     ball3d.loc[late & (rng.random(len(ball3d)) < 0.2), ["x", "y", "z"]] = np.nan
     late = after(pose3d, cut_ns)
-    joints = [c for c in pose3d.columns if c[0] == "j" and c[-1] in "xyz"]
+    joints = [c for c in pose3d.columns if c.endswith(("_x", "_y", "_z"))]  # POSE3D names its keypoints
+    assert joints
     pose3d.loc[late, joints] += rng.normal(0, 0.2, (late.sum(), len(joints)))
     late = after(paddle, cut_ns)
     paddle.loc[late, ["px", "py", "pz"]] += rng.normal(0, 0.2, (late.sum(), 3))
