@@ -211,17 +211,29 @@ def _aligned_times(tables: list[pd.DataFrame]) -> np.ndarray:
 NOT_A_VIEW = ("static", "size", "edge")
 
 
+def _candidates_on_frames(table: pd.DataFrame, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(frame rows among `times`, uv (K, 2)) of a camera's candidates (BALL_CANDIDATES) at those frame times,
+    those of a NOT_A_VIEW reason left out."""
+    table = table[~table["reason"].isin(NOT_A_VIEW)]
+    row = np.minimum(np.searchsorted(times, table["time_ns"].to_numpy()), len(times) - 1)
+    on = times[row] == table["time_ns"].to_numpy()
+    return row[on], table[["u", "v"]].to_numpy(float)[on]
+
+
+def _least_per_frame(rows: np.ndarray, key: np.ndarray) -> np.ndarray:
+    """Indices into rows (K,) of each frame's entry of the least key (K,)."""
+    order = np.lexsort((key, rows))
+    return order[np.r_[True, rows[order][1:] != rows[order][:-1]]] if len(order) else order
+
+
 def _nearest_candidates(table: pd.DataFrame, times: np.ndarray, wanted: np.ndarray, targets: np.ndarray
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(frame rows, uv (K, 2), distance px (K,)) of a camera's candidate nearest targets[row] (N, 2) in each
     frame where wanted (N,) holds; candidates of a NOT_A_VIEW reason are never taken."""
-    table = table[~table["reason"].isin(NOT_A_VIEW)]
-    row = np.minimum(np.searchsorted(times, table["time_ns"].to_numpy()), len(times) - 1)
-    on = (times[row] == table["time_ns"].to_numpy()) & wanted[row]
-    rows, uv = row[on], table[["u", "v"]].to_numpy(float)[on]
+    rows, uv = _candidates_on_frames(table, times)
+    rows, uv = rows[wanted[rows]], uv[wanted[rows]]
     distance = np.hypot(*(uv - targets[rows]).T)
-    order = np.lexsort((distance, rows))  # per frame, nearest first
-    first = order[np.r_[True, rows[order][1:] != rows[order][:-1]]] if len(order) else order
+    first = _least_per_frame(rows, distance)
     return rows[first], uv[first], distance[first]
 
 
@@ -334,20 +346,16 @@ def _epipolar_candidates(pair: list[Camera], times: np.ndarray, seed_px: np.ndar
     BALL_CANDIDATES) whose two-view point with it reprojects within both gates (2,) px at the lowest RMS;
     NaN where none."""
     out = np.full((len(times), 2), np.nan)
-    table = table[~table["reason"].isin(NOT_A_VIEW)]
-    row = np.minimum(np.searchsorted(times, table["time_ns"].to_numpy()), len(times) - 1)
-    on_frame = np.flatnonzero(times[row] == table["time_ns"].to_numpy())
-    if len(on_frame) == 0:
+    row, uv = _candidates_on_frames(table, times)
+    if len(row) == 0:
         return out
-    row = row[on_frame]
-    pixels = np.stack([seed_px[row], table[["u", "v"]].to_numpy(float)[on_frame]], axis=1)
+    pixels = np.stack([seed_px[row], uv], axis=1)
     undistorted = np.stack([cam.undistort_pixels(pixels[:, k]) for k, cam in enumerate(pair)], axis=1)
     points = triangulate_dlt(np.stack([cam.P for cam in pair]), undistorted, np.ones((len(row), 2), bool))
     errors = reprojection_errors(pair, points, pixels)
     agree = np.flatnonzero((errors <= gate).all(axis=1))
     rms = np.sqrt(np.mean(errors[agree] ** 2, axis=1))
-    order = agree[np.lexsort((rms, row[agree]))]  # per frame, lowest RMS first
-    first = order[np.r_[True, row[order][1:] != row[order][:-1]]] if len(order) else order
+    first = agree[_least_per_frame(row[agree], rms)]  # per frame, the lowest RMS
     out[row[first]] = pixels[first, 1]
     return out
 
