@@ -18,10 +18,12 @@ from pingpong.perception.triangulation import (
     ball3d_table,
     corrected_views,
     on_ball_tracks,
+    over_table_top,
     paired_views,
     reprojection_gate_px,
     triangulate_dlt,
     triangulate_robust,
+    view_seeds,
     views_table,
 )
 
@@ -413,7 +415,10 @@ def test_a_lone_detection_takes_the_candidates_on_its_epipolar_lines_only_in_lon
     candidates[3]["reason"] = "static"  # camera 3's candidates may never be a view
     gate = reprojection_gate_px(cameras, 0.005)
     tri = triangulate_robust(cameras, px, gate)
-    paired = paired_views(cameras, times, px, tri, candidates, gate, 2, min_run_frames=10)
+    open_frame = ~np.isfinite(tri["points"]).all(axis=1)
+    paired, taken = paired_views(cameras, times, px, open_frame, view_seeds(px), candidates, gate, 2,
+                                 min_run_frames=10)
+    np.testing.assert_array_equal(taken, np.arange(40) < 30)
     np.testing.assert_array_equal(paired[:30, :3], truth[:30, :3])
     assert np.isnan(paired[:, 3]).all() and np.isnan(paired[30:, 1:]).all()
     np.testing.assert_array_equal(paired[30:, 0], px[30:, 0])  # the detections of frames not paired stay
@@ -440,3 +445,42 @@ def test_the_ball_hopping_out_after_its_flight_is_on_its_track_and_a_held_ball_i
     assert is_ball[flight | roll].all() and not is_ball[held].any() and not is_ball[np.isnan(xyz[:, 0])].any()
     assert no_ball[held & (t != t[280])].all() and not no_ball[flight | roll | np.isnan(xyz[:, 0])].any()
     assert not is_ball[280] and not no_ball[280]
+
+
+def test_a_point_of_no_ball_drops_only_the_detections_it_used():
+    """Camera 2's detection (the ball, seen by it alone) is kept where the point of no ball took another of
+    its candidates; camera 0's detection, used by that point, is dropped."""
+    detected = np.array([[[1.0, 1.0], [np.nan, np.nan], [9.0, 9.0]]])
+    pixels = np.array([[[1.0, 1.0], [2.0, 2.0], [5.0, 5.0]]])
+    views = corrected_views(detected, pixels, np.ones((1, 3), bool), np.array([False]), np.array([True]))
+    np.testing.assert_array_equal(views, [[[np.nan, np.nan], [np.nan, np.nan], [9, 9]]])
+
+
+@settings(max_examples=10, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1))
+def test_a_ball_rolling_on_the_table_refused_slow_by_every_camera_is_triangulated_a_held_ball_is_not(seed):
+    """No camera detects anything: each refuses as 'slow' a ball rolling over the table top at 0.5 m/s
+    (frames 0-39, and 45-49: a run of 5) and a ball held 25 cm over it (every frame), with a 'colour' decoy.
+    The roll's 40 frames are triangulated from 'slow' candidates (within 3 mm), the short run and the held
+    ball (above the table top's roll height, ROLL_MAX_Z) are not."""
+    rng = np.random.default_rng(seed)
+    cameras = lab_cameras(rng)
+    times = np.arange(80, dtype=np.int64) * 10_000_000
+    t = times * 1e-9
+    roll = np.column_stack([np.full(80, rng.uniform(-0.5, 0.5)), -1.0 + 0.5 * t, np.full(80, 0.02)])
+    held = np.column_stack([rng.uniform(-0.5, 0.5) + 0.02 * np.sin(3 * t), np.full((80, 2), [0.8, 0.25])])
+    seen = np.r_[0:40, 45:50]
+    rolling, holding = observe(cameras, roll) + rng.normal(0, 0.2, (80, 4, 2)), observe(cameras, held)
+    candidates = []
+    for c in range(len(cameras)):
+        tables = [_tables(times[seen], rolling[seen], c, "slow"), _tables(times, holding, c, "slow"),
+                  _tables(times, holding + 60.0, c, "colour")]
+        candidates.append(pd.concat(tables).sort_values("time_ns", kind="stable"))
+    nothing = np.full((80, len(cameras), 2), np.nan)
+    detections = [_tables(times, nothing, c) for c in range(len(cameras))]
+    gate = reprojection_gate_px(cameras, 0.005)
+    views = agreed_views(cameras, detections, gate, 2, candidates, min_run_frames=10)
+    on = np.isfinite(views["points"]).all(axis=1)
+    np.testing.assert_array_equal(on, np.arange(80) < 40)
+    assert np.linalg.norm(views["points"][:40] - roll[:40], axis=1).max() < 3e-3
+    assert not over_table_top(held).any() and over_table_top(roll).all()

@@ -13,7 +13,9 @@ detector weighed (BALL_CANDIDATES), the calibration, the gate (reprojection_gate
 2. A frame with a point: a view it leaves out (a camera's detection on a held ball, a shirt, or none) takes
    that camera's candidate nearest the point's reprojection within the gate (rescue_views).
 3. A frame without one: a camera's detection with the other cameras' candidates on its epipolar line
-   (paired_views), in runs of perception.ball_pair_min_frames frames or more.
+   (paired_views), in runs of perception.ball_pair_min_frames frames or more; in the frames still without
+   one, the same from each camera's candidates refused 'slow' (a ball rolling on the table after a rally,
+   refused by every camera: no detection to start from).
    The candidates of 2 and 3 are of any reason but NOT_A_VIEW's.
 3b. A point of 3 or more views: a camera's view swapped for its candidate nearest the point of the others,
    where that is nearer by half the gate (swapped_views: a blob beside the ball within the gate).
@@ -59,6 +61,7 @@ import numpy as np
 import pandas as pd
 
 from pingpong.common.camera import Camera
+from pingpong.frames import BALL_RADIUS, TABLE_HALF_LENGTH, TABLE_HALF_WIDTH
 from pingpong.perception.ball_flight import FlightRule, link_tracks, phantom_reasons
 
 log = logging.getLogger(__name__)
@@ -220,9 +223,10 @@ def _candidates_on_frames(table: pd.DataFrame, times: np.ndarray) -> tuple[np.nd
     return row[on], table[["u", "v"]].to_numpy(float)[on]
 
 
-def _least_per_frame(rows: np.ndarray, key: np.ndarray) -> np.ndarray:
-    """Indices into rows (K,) of each frame's entry of the least key (K,)."""
-    order = np.lexsort((key, rows))
+def _least_per_frame(rows: np.ndarray, *keys: np.ndarray) -> np.ndarray:
+    """Indices into rows (K,) of each frame's entry of the least keys (each (K,), the last the first
+    compared), the first such entry on ties."""
+    order = np.lexsort((*keys, rows))  # stable
     return order[np.r_[True, rows[order][1:] != rows[order][:-1]]] if len(order) else order
 
 
@@ -294,70 +298,87 @@ def swapped_views(cameras: list[Camera], times: np.ndarray, px: np.ndarray, tri:
     return out
 
 
-def paired_views(cameras: list[Camera], times: np.ndarray, px: np.ndarray, tri: dict,
-                 candidates: list[pd.DataFrame], max_reproj_px, min_views: int = 2, min_run_frames: int = 1
-                 ) -> np.ndarray:
-    """px (N, C, 2) with the frames where the triangulation `tri` of px found no point replaced by the views
-    of the best hypothesis of a detection and other cameras' candidates that agree with it, where one has at
-    least min_views views; the rest unchanged. candidates: as rescue_views'.
+def paired_views(cameras: list[Camera], times: np.ndarray, px: np.ndarray, open_frame: np.ndarray,
+                 seeds: list[tuple[np.ndarray, np.ndarray]], candidates: list[pd.DataFrame], max_reproj_px,
+                 min_views: int = 2, min_run_frames: int = 1, where=None) -> tuple[np.ndarray, np.ndarray]:
+    """(px (N, C, 2) with the open frames (N,) replaced by the views of the best hypothesis of a seed and
+    other cameras' candidates that agree with it, where one has at least min_views views (and its point
+    satisfies `where`, a function of points (S, 3) to (S,) bools, where given), the rest unchanged; which
+    frames (N,) were replaced).
+    seeds: per camera, (frame rows (S,), uv (S, 2)) of the 2D balls to start from, any number a frame (its
+    detections, or candidates: agreed_views); candidates: as rescue_views'.
 
-    A hypothesis starts from a camera's detection (its seed) and takes, in each other camera, the candidate
-    whose two-view point with the seed reprojects within both cameras' gates (the lowest RMS of those): the
-    candidate on the seed's epipolar line. Its views are then triangulated together (triangulate_robust);
-    the frame takes the hypothesis of the most views, then the lowest RMS. A ball that one camera's track
+    A hypothesis starts from a seed and takes, in each other camera, the candidate whose two-view point with
+    the seed reprojects within both cameras' gates (the lowest RMS of those): the candidate on the seed's
+    epipolar line. Its views are then triangulated together (triangulate_robust); the frame takes the
+    hypothesis of the most views, then the lowest RMS, then the first camera's. A ball that one camera's track
     keeps while the others refuse it (a ball dribbling over the net at 0.5 m/s is 'slow' in a camera that
     sees it move along its axis) has no second detection to agree with: its candidates do. Only runs of
     at least min_run_frames consecutive frames so paired are taken: a seed's epipolar line crosses some
     other blob now and then where the ball is hidden from the other cameras, for a frame or a few (the
     tiny run with twin.room: of 29 runs of 1-5 frames, 63 of their 100 views were not the ball; of 2 runs
     of 15 frames or more, 2 of 338). Loops over camera pairs, never over frames."""
-    n_frames, n_cams = px.shape[:2]
+    n_cams = px.shape[1]
     gate = np.broadcast_to(np.asarray(max_reproj_px, float), (n_cams,))
-    open_frame = ~np.isfinite(tri["points"]).all(axis=1)
-    best, best_views, best_rms = px.copy(), np.zeros(n_frames, int), np.full(n_frames, np.inf)
-    for seed, camera in enumerate(cameras):
-        frames = np.flatnonzero(open_frame & np.isfinite(px[:, seed]).all(axis=1))
-        if len(frames) == 0:
-            continue
-        hypothesis = np.full((len(frames), n_cams, 2), np.nan)
-        hypothesis[:, seed] = px[frames, seed]
+    frames, hypotheses = [], []
+    for seed, (rows, uv) in enumerate(seeds):
+        rows, uv = rows[open_frame[rows]], uv[open_frame[rows]]
+        hypothesis = np.full((len(rows), n_cams, 2), np.nan)
+        hypothesis[:, seed] = uv
         for other in range(n_cams):
-            if other != seed:
+            if other != seed and len(rows):
                 hypothesis[:, other] = _epipolar_candidates(
-                    [camera, cameras[other]], times[frames], px[frames, seed], candidates[other],
-                    gate[[seed, other]])
-        fit = triangulate_robust(cameras, hypothesis, gate, min_views)
-        better = (fit["n_views"] > best_views[frames]) | (
-            (fit["n_views"] == best_views[frames]) & (fit["reproj_rms_px"] < best_rms[frames]))
-        better &= fit["n_views"] >= min_views
-        take = frames[better]
-        best[take] = np.where(fit["used_mask"][better][..., None], hypothesis[better], np.nan)
-        best_views[take], best_rms[take] = fit["n_views"][better], fit["reproj_rms_px"][better]
-    paired = np.flatnonzero(best_views > 0)
-    runs = np.split(paired, np.flatnonzero(np.diff(paired) > 1) + 1)
-    short = np.concatenate([run for run in runs if len(run) < min_run_frames] + [np.zeros(0, int)])
-    best[short] = px[short]
-    return best
+                    [cameras[seed], cameras[other]], rows, uv,
+                    *_candidates_on_frames(candidates[other], times), gate[[seed, other]])
+        frames.append(rows)
+        hypotheses.append(hypothesis)
+    frames, hypotheses = np.concatenate(frames), np.concatenate(hypotheses)
+    fit = triangulate_robust(cameras, hypotheses, gate, min_views)
+    enough = fit["n_views"] >= min_views
+    if where is not None:
+        enough &= where(fit["points"])
+    enough = np.flatnonzero(enough)
+    best = enough[_least_per_frame(frames[enough], fit["reproj_rms_px"][enough], -fit["n_views"][enough])]
+    taken = np.sort(frames[best])
+    runs = np.split(taken, np.flatnonzero(np.diff(taken) > 1) + 1)
+    long_run = np.isin(frames[best], np.concatenate([run for run in runs if len(run) >= min_run_frames]
+                                                    + [np.zeros(0, int)]))
+    best = best[long_run]
+    out, taken = px.copy(), np.zeros(len(px), bool)
+    out[frames[best]] = np.where(fit["used_mask"][best][..., None], hypotheses[best], np.nan)
+    taken[frames[best]] = True
+    return out, taken
 
 
-def _epipolar_candidates(pair: list[Camera], times: np.ndarray, seed_px: np.ndarray, table: pd.DataFrame,
-                         gate: np.ndarray) -> np.ndarray:
-    """Per seed pixel (F, 2) at its frame time (F,) in pair[0], the candidate of pair[1] (table: its
-    BALL_CANDIDATES) whose two-view point with it reprojects within both gates (2,) px at the lowest RMS;
-    NaN where none."""
-    out = np.full((len(times), 2), np.nan)
-    row, uv = _candidates_on_frames(table, times)
-    if len(row) == 0:
+def _epipolar_candidates(pair: list[Camera], seed_rows: np.ndarray, seed_px: np.ndarray, rows: np.ndarray,
+                         uv: np.ndarray, gate: np.ndarray) -> np.ndarray:
+    """Per seed pixel (S, 2) of pair[0] at its frame row (S,), the candidate of pair[1] (uv (K, 2) at frame
+    rows (K,)) of the same frame whose two-view point with it reprojects within both gates (2,) px at the
+    lowest RMS; NaN where none."""
+    out = np.full((len(seed_rows), 2), np.nan)
+    seed, other = _same_frame_pairs(seed_rows, rows)
+    if len(seed) == 0:
         return out
-    pixels = np.stack([seed_px[row], uv], axis=1)
+    pixels = np.stack([seed_px[seed], uv[other]], axis=1)
     undistorted = np.stack([cam.undistort_pixels(pixels[:, k]) for k, cam in enumerate(pair)], axis=1)
-    points = triangulate_dlt(np.stack([cam.P for cam in pair]), undistorted, np.ones((len(row), 2), bool))
+    points = triangulate_dlt(np.stack([cam.P for cam in pair]), undistorted, np.ones((len(seed), 2), bool))
     errors = reprojection_errors(pair, points, pixels)
     agree = np.flatnonzero((errors <= gate).all(axis=1))
     rms = np.sqrt(np.mean(errors[agree] ** 2, axis=1))
-    first = agree[_least_per_frame(row[agree], rms)]  # per frame, the lowest RMS
-    out[row[first]] = pixels[first, 1]
+    first = agree[_least_per_frame(seed[agree], rms)]  # per seed, the lowest RMS
+    out[seed[first]] = pixels[first, 1]
     return out
+
+
+def _same_frame_pairs(seed_rows: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(seed indices, candidate indices) of every seed (frame rows (S,)) with every candidate (frame rows
+    (K,)) of its frame."""
+    order = np.argsort(rows, kind="stable")
+    start = np.searchsorted(rows[order], seed_rows, "left")
+    count = np.searchsorted(rows[order], seed_rows, "right") - start
+    seed = np.repeat(np.arange(len(seed_rows)), count)
+    within = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    return seed, order[np.repeat(start, count) + within]
 
 
 def agreed_views(cameras: list[Camera], detections: list[pd.DataFrame], max_reproj_px, min_views: int = 2,
@@ -368,8 +389,9 @@ def agreed_views(cameras: list[Camera], detections: list[pd.DataFrame], max_repr
     where a camera has none) and the pixels triangulated, `pixels` (N, C, 2): the detections, and with
     candidates (per camera, BALL_CANDIDATES) the candidates that fill the views the detections leave out
     where they agree with the others (rescue_views) and, in runs of at least min_run_frames frames where no
-    detections agree, the candidates that agree with one camera's detection (paired_views), the points then
-    triangulated again."""
+    detections agree, the candidates that agree with one camera's detection (paired_views), then in the
+    frames still open those that agree with a candidate refused 'slow' and make a point over the table top
+    (over_table_top: a ball rolling out after a rally), the points then triangulated again."""
     times = _aligned_times(detections)
     px = np.stack([np.where(d["detected"].to_numpy()[:, None], d[["u", "v"]].to_numpy(), np.nan)
                    for d in detections], axis=1)
@@ -377,22 +399,48 @@ def agreed_views(cameras: list[Camera], detections: list[pd.DataFrame], max_repr
     if candidates is not None:
         pixels = rescue_views(cameras, times, px, tri, candidates, max_reproj_px)
         filled = _changed(px, pixels)
-        pixels = paired_views(cameras, times, pixels, tri, candidates, max_reproj_px, min_views,
-                              min_run_frames)
+        open_frame = ~np.isfinite(tri["points"]).all(axis=1)
+        pixels, paired_frame = paired_views(cameras, times, pixels, open_frame, view_seeds(px), candidates,
+                                            max_reproj_px, min_views, min_run_frames)
+        slow = [_candidates_on_frames(table[table["reason"] == "slow"], times) for table in candidates]
+        pixels, slow_frame = paired_views(cameras, times, pixels, open_frame & ~paired_frame, slow,
+                                          candidates, max_reproj_px, min_views, min_run_frames,
+                                          where=over_table_top)
         paired = _changed(px, pixels) & ~filled
-        if (filled | paired).any():
+        if paired.any() or filled.any():
             tri = triangulate_robust(cameras, pixels, max_reproj_px, min_views)
         before = pixels
         pixels = swapped_views(cameras, times, pixels, tri, candidates, max_reproj_px)
         swapped = _changed(before, pixels)
         log.info("views filled by a camera's other ball candidates: %d where the others agree (per camera "
-                 "%s), %d agreeing with a lone detection (per camera %s); %d used views swapped for a "
-                 "candidate nearer the others' point (per camera %s)", filled.sum(),
-                 filled.sum(axis=0).tolist(), paired.sum(), paired.sum(axis=0).tolist(), swapped.sum(),
+                 "%s), %d agreeing with a lone detection or a 'slow' candidate (per camera %s; frames: %d of "
+                 "a detection, %d of a slow candidate); %d used views swapped for a candidate nearer the "
+                 "others' point (per camera %s)", filled.sum(), filled.sum(axis=0).tolist(), paired.sum(),
+                 paired.sum(axis=0).tolist(), paired_frame.sum(), slow_frame.sum(), swapped.sum(),
                  swapped.sum(axis=0).tolist())
         if swapped.any():
             tri = triangulate_robust(cameras, pixels, max_reproj_px, min_views)
     return tri | {"times": times, "detected": px, "pixels": pixels}
+
+
+# The highest centre (m, table frame) of a ball rolling or hopping out over the table top after a rally:
+# the ball's radius plus 6 cm of hop. The default run of 1754bef: of 1,544 points seeded from 'slow'
+# candidates anywhere, 163 lay over the table top with z in [0, 0.08] m, all within 3 cm of the ball
+# (s02's 1 s roll by the net: 103 frames); none of the other 1,381 (floor balls, held balls) was the ball.
+ROLL_MAX_Z = BALL_RADIUS + 0.06
+
+
+def over_table_top(points: np.ndarray) -> np.ndarray:
+    """Which points (S, 3) m lie over the table top, centres at most ROLL_MAX_Z above it (NaN: False)."""
+    with np.errstate(invalid="ignore"):
+        return ((np.abs(points[:, 0]) <= TABLE_HALF_WIDTH) & (np.abs(points[:, 1]) <= TABLE_HALF_LENGTH)
+                & (points[:, 2] >= 0) & (points[:, 2] <= ROLL_MAX_Z))
+
+
+def view_seeds(px: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per camera, (frame rows, uv) of its views in px (N, C, 2), NaN none: paired_views' seeds."""
+    seen = np.isfinite(px).all(axis=2)
+    return [(np.flatnonzero(seen[:, c]), px[seen[:, c], c]) for c in range(px.shape[1])]
 
 
 def _changed(before: np.ndarray, after: np.ndarray) -> np.ndarray:
@@ -442,9 +490,12 @@ def corrected_views(detected: np.ndarray, pixels: np.ndarray, used: np.ndarray, 
     ball (on_ball_tracks). Where the point is the ball a camera's ball is the view the point used: its
     detection where that agrees with the others, else the candidate that does, else none (its detection
     contradicts where the other views agree). Where the point is no ball (a held ball, a cap), the views
-    it used are no ball, and a camera it did not use keeps its detection; elsewhere (no views agree, or a
-    point too short to judge) every camera keeps its own detection (nothing to check it against)."""
-    own = ~(is_ball | no_ball)[:, None] | (no_ball[:, None] & ~used)
+    it used are no ball, and a camera keeps its detection where the point did not use it (it may be the
+    ball seen by that camera alone, where the point took another of its candidates); elsewhere (no views
+    agree, or a point too short to judge) every camera keeps its own detection (nothing to check it
+    against)."""
+    was_used = used & (pixels == detected).all(axis=2)  # a camera's own detection among the point's views
+    own = ~(is_ball | no_ball)[:, None] | (no_ball[:, None] & ~was_used)
     ball_view = is_ball[:, None] & used
     return np.where(ball_view[..., None], pixels, np.where(own[..., None], detected, np.nan))
 
