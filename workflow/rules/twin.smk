@@ -31,6 +31,7 @@ rule twin_simulate:
         optitrack_hz=TWIN["optitrack_hz"],
         bystander_rate=TWIN["bystander_rate"],
         homoscedastic=TWIN["homoscedastic"],
+        serve_toss=TWIN["serve_toss"],
         oracle_draws=TWIN["oracle_draws"],
         code=code("twin_simulate"),
     log:

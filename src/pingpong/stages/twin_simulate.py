@@ -12,7 +12,8 @@ def main(ctx):
     p = ctx.params
     session = simulate_session(p["rallies"], FaultRates(**p["fault_rates"]),
                                rng_for(p["seed"], "twin_simulate", p["session"]), p["optitrack_hz"],
-                               p["session_index"], p["bystander_rate"], p["homoscedastic"])
+                               p["session_index"], p["bystander_rate"], p["homoscedastic"],
+                               p["serve_toss"])
     oracle = session_oracle(session.records, rng_for(p["seed"], "twin_oracle", p["session"]),
                             session_epoch_ns(p["session_index"]),
                             p["oracle_draws"])

@@ -213,6 +213,32 @@ def pose_joints(dims: BodyDims, base: np.ndarray, root: np.ndarray, twist: np.nd
     return out
 
 
+HAND_BEYOND_WRIST = 0.4  # the hand's centre lies beyond the wrist by this share of the forearm (twin.render)
+
+
+def free_hand_to(joints: np.ndarray, dims: BodyDims, handedness: int, target: np.ndarray,
+                 weight: np.ndarray) -> np.ndarray:
+    """BODY_25 joints (T, 25, 3) with the free arm re-solved where weight (T,) > 0: its hand's centre
+    moved from where it is towards target (T, 3) by weight (1: at the target, or the nearest point the arm
+    reaches). The arm is a two-link chain whose end is the hand's centre, 1 + HAND_BEYOND_WRIST forearms
+    from the elbow, so both bones keep their lengths; the elbow stays as near its place as it can.
+    Other joints and frames are returned unchanged (the same array where weight is all 0)."""
+    moved = np.flatnonzero(weight > 0)
+    if len(moved) == 0:
+        return joints
+    free = "L" if handedness > 0 else "R"
+    shoulder, elbow, wrist = (J[free + name] for name in ("Shoulder", "Elbow", "Wrist"))
+    out = joints.copy()
+    arm = joints[moved]
+    hand = arm[:, wrist] + HAND_BEYOND_WRIST * (arm[:, wrist] - arm[:, elbow])
+    goal = hand + weight[moved, None] * (target[moved] - hand)
+    reach = (1 + HAND_BEYOND_WRIST) * dims.forearm
+    new_elbow, end = two_link(arm[:, shoulder], goal, dims.upper_arm, reach, arm[:, elbow])
+    out[moved, elbow] = new_elbow
+    out[moved, wrist] = new_elbow + (end - new_elbow) / (1 + HAND_BEYOND_WRIST)
+    return out
+
+
 def bystander_joints(times: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """BODY_25 joints (T, 25, 3) of an onlooker standing beside the table, swaying and shifting a little.
 

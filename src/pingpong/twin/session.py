@@ -7,6 +7,33 @@ paddle that brushes the ball for that spin from `paddle_for_spin`; the spin the 
 from `paddle_impact`, and the shot is re-aimed with it. The flight is then simulated and the *actual*
 outcome (not the intent) is what the truth records. The players' strokes are planned afterwards from
 all their hits, so their bodies show each decision from the time it was made.
+
+The serve's toss (`serve_toss`, config twin.serve_toss; off by default, and then the twin's bytes are those
+without it). Off, a serve's ball appears at the hit point falling at 1 m/s and nothing is recorded before the
+hit. On, each serve is preceded by the ball in play's recorded toss, as ITTF Laws 2.06.01-2.06.04 have it:
+it leaves the server's open palm (behind the end line, above the playing surface), is projected near vertically
+upwards without spin, rises TOSS_RISE_M above the palm (>= 16 cm), and is struck as it falls, so its
+velocity at the hit (the serve's v_in) is the fall from the apex. The ball is in play from its release
+(Law 2.05.01: "from the last moment at which it is stationary on the palm of the free hand before being
+intentionally projected"), so the truth records it from there, under the rally's id and shot TOSS_SHOT (no
+row of the shots table has it: a shot's flight stays hit to hit). The palm is TOSS_PALM_BACK_M farther from
+the table than the serve's hit point, the ball thrown a little forwards onto it (7.6 degrees from the
+vertical in the median, 21.8 at most, 24 tosses of seeds 3 and 4: "near vertically"), so the hit point and
+its draws are those of the toss off. Its flight time is added to the pause before the serve: the rally's
+first sample is the release, still 0.5-1.0 s after the previous rally's last.
+Toss heights: no measured distribution was found (searched: serve toss height, kinematic serve studies);
+the Laws set the 16 cm floor, and a coach's account (L. Hodges, USA Table Tennis, 1997/2013: "two-foot
+tosses" beside high tosses of 10-20 feet from the ground) the common range; TOSS_RISE_M is chosen within
+it, without the high tosses (1-2 s in the air, beyond the twin's compressed pauses). The palm's height
+over the table, TOSS_PALM_Z_M, is chosen. The server's free hand is at the palm: simulate_session bends
+the free arm (players.free_hand_to) so that its hand reaches under the ball TOSS_REACH_S before the
+release, stays still TOSS_STILL_S (the Laws' stationary palm) and drops back over TOSS_DROP_S after.
+Failure mode: the body is planned from the paddle's hits alone, so the palm can lie beyond the free arm;
+the hand then stops at the nearest point it reaches, arm straight. Measured on 24 tosses (seeds 3 and 4,
+12 rallies each: the hand centre at the release, as tests/test_twin_toss.py measures it): 67 % within 2 cm, the gap's median
+1 mm, 90th percentile 18 cm, largest 24 cm; directly under the hit point (no TOSS_PALM_BACK_M) half the
+palms were out of reach, by up to 36 cm. Per-frame cost: none (the twin's truth tables; a toss is ~0.5 s
+of 1 kHz RK4 samples, a few shooting rounds).
 """
 
 from dataclasses import dataclass
@@ -14,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from pingpong.frames import FRAME_NS, ROT_COLUMNS, STRIKE_Y, TABLE_HALF_LENGTH
+from pingpong.frames import FRAME_NS, GRAVITY, ROT_COLUMNS, STRIKE_Y, TABLE_HALF_LENGTH
 from pingpong.twin.ball import (
     SLOWER_AIMS,
     BallParams,
@@ -26,7 +53,7 @@ from pingpong.twin.ball import (
     simulate_flight,
     stop_at_y,
 )
-from pingpong.twin.players import bystander_joints, sample_player_style
+from pingpong.twin.players import bystander_joints, free_hand_to, sample_player_style
 from pingpong.twin.repertoire import (
     ShotContext,
     ShotTiming,
@@ -39,12 +66,19 @@ from pingpong.twin.repertoire import (
     sample_tactics,
     target_strike_x,
 )
-from pingpong.twin.strokes import Hit, evaluate_player, paddle_centre_at_impact, plan_player
+from pingpong.twin.strokes import Hit, _smoothstep, evaluate_player, paddle_centre_at_impact, plan_player
 
 SIDES = {1: "near", -1: "far"}  # the player at +y is 'near', at -y 'far'
 SESSION_EPOCH_NS = 1_767_225_600_000_000_000  # 2026-01-01T00:00Z; session k starts k hours later
 MIN_STROKE_GAP = 0.62  # s: a ball back sooner after a player's last stroke is missed (strokes.py needs 0.6)
 LOWEST_HIT_Z = -0.2  # m: a ball lower at the hitting plane is missed (players lift balls below the table)
+TOSS_SHOT = -1  # the ball table's shot id of a serve's toss (the serve is shot 0)
+TOSS_RISE_M = (0.16, 0.60)  # the toss's rise over the palm: the Laws' 16 cm to a two-foot toss (docstring)
+TOSS_PALM_Z_M = (0.05, 0.35)  # the palm over the table top (above the playing surface: Law 2.06.04; chosen)
+TOSS_PALM_BACK_M = (0.10, 0.30)  # the palm behind the hit point, towards the server (chosen: docstring)
+TOSS_MIN_FALL_M = 0.02  # the ball falls at least this far from the apex before the hit ("as it falls")
+PALM_DEPTH_M = 0.045  # the hand's centre under the ball on the palm: twin.render's hand disc radius
+TOSS_REACH_S, TOSS_STILL_S, TOSS_DROP_S = 0.4, 0.1, 0.3  # the free hand's moves around a toss (chosen)
 
 
 @dataclass(frozen=True)
@@ -53,6 +87,15 @@ class FaultRates:
     out: float = 0.02
     double_bounce: float = 0.01
     miss: float = 0.02
+
+
+@dataclass(frozen=True)
+class Toss:
+    """A serve's toss: when the ball leaves the palm (s, session clock before the epoch), where, by whom."""
+
+    t_release: float
+    palm: np.ndarray  # (3,) the ball's centre at the release, m
+    side: int  # the server's
 
 
 @dataclass
@@ -146,6 +189,7 @@ class _Recorder:
 
     def __init__(self):
         self.ball, self.shots, self.events = [], [], []
+        self.tosses: list[Toss] = []
 
     def flight(self, t0: float, flight: Flight, rally: int, shot: int):
         n = len(flight.times)
@@ -222,10 +266,41 @@ def _decide(rng, tactics: Tactics, ctx: ShotContext, ball: BallParams):
     return timing, intent, final, execution
 
 
+def launch_speed(rise: float, ball: BallParams) -> float:
+    """Upward speed (m/s) that lifts a spinless ball `rise` m against gravity and quadratic drag:
+    with dv/dt = -g - k_D v^2 the apex is ln(1 + k_D v0^2 / g) / (2 k_D) above the start."""
+    k = ball.k_drag
+    return float(np.sqrt(GRAVITY * np.expm1(2 * k * rise) / k))
+
+
+def toss_flight(rng: np.random.Generator, p_hit: np.ndarray, side: int, ball: BallParams) -> Flight:
+    """A serve's toss from the palm up and down onto p_hit, falling there (module docstring): the palm
+    TOSS_PALM_Z_M over the table and TOSS_PALM_BACK_M farther from the table than p_hit (towards the
+    server at `side`), the rise TOSS_RISE_M over the palm and, where the hit point is high, enough to fall
+    TOSS_MIN_FALL_M onto it. The horizontal launch speed is found by shooting: the drag that slows it
+    depends on the whole speed, so it is corrected by the miss over the flight time until within 0.1 mm."""
+    palm_z = rng.uniform(*TOSS_PALM_Z_M)
+    rise = rng.uniform(max(TOSS_RISE_M[0], p_hit[2] + TOSS_MIN_FALL_M - palm_z), TOSS_RISE_M[1])
+    palm = np.array([p_hit[0], p_hit[1] + side * rng.uniform(*TOSS_PALM_BACK_M), palm_z])
+
+    def falling_onto_hit(t, p, v):  # > 0 until the falling ball reaches the hit's height
+        return p[2] - p_hit[2] if v[2] < 0 else 1.0
+
+    v0 = np.array([0.0, 0.0, launch_speed(rise, ball)])
+    for _ in range(10):
+        flight = simulate_flight(palm, v0, np.zeros(3), ball, t_max=3.0, stop=falling_onto_hit)
+        miss = p_hit[:2] - flight.positions[-1, :2]
+        if np.abs(miss).max() < 1e-4:
+            return flight
+        v0[:2] += miss / flight.times[-1]
+    raise ValueError(f"no toss from {palm} falls onto {p_hit}")
+
+
 def simulate_rallies(n_rallies: int, rates: FaultRates, rng: np.random.Generator, homoscedastic: bool = False,
-                     ball: BallParams = BallParams()):
+                     ball: BallParams = BallParams(), serve_toss: bool = False):
     """Ball flights of all rallies: the recorder, each player's hits and tracking cues, the end time (s),
-    the good shots' decisions (ShotRecord) and both players' tactics."""
+    the good shots' decisions (ShotRecord) and both players' tactics. serve_toss: each serve is preceded by
+    its toss (module docstring; the recorder's tosses list them)."""
     rec = _Recorder()
     hits = {1: [], -1: []}
     track = {1: ([], []), -1: ([], [])}
@@ -241,6 +316,12 @@ def simulate_rallies(n_rallies: int, rates: FaultRates, rng: np.random.Generator
         # the server's toss: the ball drops into the hitting plane (a drive-like serve; see README)
         p = np.array([rng.uniform(-0.4, 0.4), _hitting_plane(rng, side), rng.uniform(0.15, 0.35)])
         v_in, w_in = np.array([0.0, 0.0, -1.0]), np.zeros(3)
+        if serve_toss:  # the toss recorded from the palm, its time added to the pause
+            toss = toss_flight(rng, p, side, ball)
+            rec.flight(t, toss, rally, TOSS_SHOT)
+            rec.tosses.append(Toss(t, toss.positions[0], side))
+            t += toss.times[-1]
+            p, v_in = toss.positions[-1], toss.velocities[-1]
         last_hit = {1: -np.inf, -1: -np.inf}
         for shot in range(10_000):
             ctx = ShotContext(p, v_in, w_in, side, serve=shot == 0)
@@ -336,15 +417,31 @@ def _bystander_mask(times: np.ndarray, rate: float, rng) -> np.ndarray:
     return present
 
 
+def toss_hand_weights(times: np.ndarray, tosses: list[Toss]) -> tuple[np.ndarray, np.ndarray]:
+    """Where the server's free hand goes for its tosses: per time (s), the hand's centre under the ball at
+    the release (T, 3) and how far it has moved there from its own place (T,), 0 to 1 (module docstring)."""
+    target, weight = np.zeros((len(times), 3)), np.zeros(len(times))
+    for toss in tosses:
+        still = toss.t_release - TOSS_STILL_S
+        w = np.where(times < toss.t_release, _smoothstep(times, still - TOSS_REACH_S, still),
+                     1 - _smoothstep(times, toss.t_release, toss.t_release + TOSS_DROP_S))
+        take = w > weight
+        weight[take] = w[take]
+        target[take] = toss.palm - np.array([0.0, 0.0, PALM_DEPTH_M])
+    return target, weight
+
+
 def simulate_session(n_rallies: int, rates: FaultRates, rng: np.random.Generator, optitrack_hz: float = 240.0,
                      session_index: int = 0, bystander_rate: float = 0.2,
-                     homoscedastic: bool = False) -> SessionTruth:
+                     homoscedastic: bool = False, serve_toss: bool = False) -> SessionTruth:
     """Ground truth of one session: ball, shots, events, people at 100 Hz, paddles at optitrack_hz.
 
     homoscedastic: the control twin (config/twin_homoscedastic.yaml), where when a shot's intent
-    shows and how often it changes late do not depend on anything a model could see.
+    shows and how often it changes late do not depend on anything a model could see. serve_toss: each serve
+    is preceded by its toss from the server's free hand (module docstring).
     """
-    rec, hits, track, t_end, records, _ = simulate_rallies(n_rallies, rates, rng, homoscedastic)
+    rec, hits, track, t_end, records, _ = simulate_rallies(n_rallies, rates, rng, homoscedastic,
+                                                           serve_toss=serve_toss)
     t_end += 1.0
     epoch = session_epoch_ns(session_index)
     frames = np.arange(0, int(t_end * 1e9), FRAME_NS, dtype=np.int64)
@@ -354,7 +451,12 @@ def simulate_session(n_rallies: int, rates: FaultRates, rng: np.random.Generator
         plan = plan_player(side, hits[side], sample_player_style(rng), rng,
                            track_times=np.array(track[side][0]), track_x=np.array(track[side][1]))
         body = evaluate_player(plan, frames / 1e9)
-        people.append(_people_frame(frames + epoch, SIDES[side], body.joints))
+        joints = body.joints
+        tosses = [toss for toss in rec.tosses if toss.side == side]
+        if tosses:
+            joints = free_hand_to(joints, plan.dims, plan.style.handedness,
+                                  *toss_hand_weights(frames / 1e9, tosses))
+        people.append(_people_frame(frames + epoch, SIDES[side], joints))
         pad = evaluate_player(plan, opt / 1e9)
         paddles.append(pd.DataFrame({
             "time_ns": opt + epoch, "player": SIDES[side],
