@@ -1,6 +1,7 @@
-"""Ball-detection QA sheet: which frames it shows (every kind of decision, spread over the stream, never more
-tiles than asked, only frames of the stream), where it draws (a kept candidate circled green at its place on
-the tile), and the stage on a tiny MCAP stream written with pingpong's own writer."""
+"""Ball-detection QA sheet: which frames it shows (every kind of decision and every way the multi-view ball
+differs from the detection, spread over the stream, never more tiles than asked, only frames of the stream),
+where it draws (a kept candidate circled green, the multi-view ball's cyan X, at their places on the
+tile), and the stage on a tiny MCAP stream written with pingpong's own writer, with a ball_views table."""
 
 import cv2
 import numpy as np
@@ -13,22 +14,28 @@ from pingpong.common.artifacts import Provenance, read_table, write_table
 from pingpong.common.script import Named, StageContext
 from pingpong.io.camera_streams import CameraFrame
 from pingpong.io.mcap_io import CameraStreamWriter
-from pingpong.perception.schemas import BALL_CANDIDATES
+from pingpong.perception.schemas import BALL_CANDIDATES, DETECTIONS
 from pingpong.reports import ball_qa
 from pingpong.reports.ball_qa import (
+    DROPPED,
+    FILLED,
     KEPT,
     KEPT_BGR,
+    MOVED,
     NO_DETECTION,
     REFUSED_BGR,
     TILE_COLUMNS,
     TILE_PX,
     TITLE_PX,
+    VIEW_BGR,
+    Focus,
     ball_qa_sheet,
     choose_tiles,
     crop_square,
     draw_tile,
     spread_order,
     tile_position,
+    view_changes,
 )
 from pingpong.stages import report_ball_qa
 
@@ -51,6 +58,31 @@ def lab_table() -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def views_of(candidates: pd.DataFrame, n_frames: int, pick=lambda frame, rows: rows[rows["kept"]]):
+    """A DETECTIONS table of n_frames frames: each frame's multi-view ball the candidate `pick` returns of
+    the frame's candidates (at most one row; the kept one unless told), none where it returns none."""
+    rows = []
+    for frame in range(n_frames):
+        time_ns = frame * FRAME_NS
+        chosen = pick(frame, candidates[candidates["time_ns"] == time_ns])
+        u, v, area = chosen[["u", "v", "area_px"]].iloc[0] if len(chosen) else (np.nan, np.nan, 0.0)
+        rows.append({"time_ns": time_ns, "u": u, "v": v, "area_px": area, "detected": bool(len(chosen)),
+                     "decode_ok": True})
+    return pd.DataFrame(rows, columns=list(DETECTIONS.columns))
+
+
+def lab_views(table: pd.DataFrame) -> pd.DataFrame:
+    """The lab's multi-view ball: the detection, but dropped in frames 10-11, moved to the static box in 20,
+    filled with the slow (held) ball in 62-64."""
+    def pick(frame, rows):
+        if frame in (10, 11):
+            return rows.iloc[:0]
+        if frame == 20 or 62 <= frame <= 64:
+            return rows[rows["reason"] == ("static" if frame == 20 else "slow")]
+        return rows[rows["kept"]]
+    return views_of(table, 100, pick)
+
+
 def test_spread_order_is_every_index_once_and_its_prefixes_spread():
     for n in (1, 2, 7, 100):
         order = list(spread_order(n))
@@ -60,23 +92,32 @@ def test_spread_order_is_every_index_once_and_its_prefixes_spread():
 
 def test_every_kind_gets_tiles_spread_over_its_frames():
     table = lab_table()
-    tiles = choose_tiles(table, 24)
+    tiles = choose_tiles(table, lab_views(table), 24)
     assert len(tiles) == 24 and tiles["time_ns"].is_unique
-    # kinds in the sheet's order: kept, refusals by frequency (static 100, slow 10, size 1), no detection
-    assert list(dict.fromkeys(tiles["kind"])) == [KEPT, "static", "slow", "size", NO_DETECTION]
+    # kinds in the sheet's order: the multi-view ball's differences, kept, refusals by frequency (static
+    # 100, slow 10, size 1), no detection
+    assert list(dict.fromkeys(tiles["kind"])) == [FILLED, DROPPED, MOVED, KEPT, "static", "slow", "size",
+                                                  NO_DETECTION]
+    frames = lambda kind: set(tiles.loc[tiles["kind"] == kind, "time_ns"] // FRAME_NS)  # noqa: E731
+    assert frames(FILLED) == {62, 63, 64} and frames(DROPPED) == {10, 11} and frames(MOVED) == {20}
     assert (tiles["kind"] == "size").sum() == 1 and 80 * FRAME_NS in set(tiles["time_ns"])
     kept = tiles.loc[tiles["kind"] == KEPT, "time_ns"] // FRAME_NS
-    assert kept.is_monotonic_increasing and kept.min() < 15 and kept.max() > 45  # over the kept frames 0-59
+    # over the kept frames 0-59 (10, 11 dropped): five tiles, the middle, the quarters (15, 45), two eighths
+    assert kept.is_monotonic_increasing and kept.min() < 15 and kept.max() >= 45
     shown = table[table["time_ns"].isin(tiles.loc[tiles["kind"] == NO_DETECTION, "time_ns"])]
     assert not shown["kept"].any()
-    assert len(choose_tiles(table, 3)) == 3
+    assert len(choose_tiles(table, lab_views(table), 3)) == 3
+    without_changes = choose_tiles(table, views_of(table, 100), 24)  # the views are the detections
+    assert not without_changes["kind"].isin([FILLED, DROPPED, MOVED]).any()
 
 
 @st.composite
 def candidate_tables(draw):
-    """Up to 40 frames with 0-4 candidates each, at most one kept, reasons from six names."""
+    """Up to 40 frames with 0-4 candidates each, at most one kept, reasons from six names; and their
+    multi-view ball: each frame's kept candidate, none, or another of its candidates."""
     rows = []
-    for frame in range(draw(st.integers(1, 40))):
+    n_frames = draw(st.integers(1, 40))
+    for frame in range(n_frames):
         n = draw(st.integers(0, 4))
         kept_at = draw(st.integers(-1, n - 1)) if n else -1
         for k in range(n):
@@ -84,25 +125,41 @@ def candidate_tables(draw):
                                                                      "size", "lone"]))
             u, v = draw(st.floats(0, 479)), draw(st.floats(0, 359))
             rows.append(candidate(frame, u, v, k == kept_at, reason, score=draw(st.floats(0, 1))))
-    return pd.DataFrame(rows, columns=list(BALL_CANDIDATES.columns))
+    table = pd.DataFrame(rows, columns=list(BALL_CANDIDATES.columns))
+    view_at = draw(st.lists(st.integers(-2, 3), min_size=n_frames, max_size=n_frames))  # -2: the kept one
+
+    def pick(frame, rows):
+        return rows[rows["kept"]] if view_at[frame] == -2 else rows.iloc[view_at[frame]:view_at[frame] + 1]
+    return table, views_of(table, n_frames, pick)
 
 
-@given(table=candidate_tables(), n_tiles=st.integers(1, 30))
-def test_selection_shows_every_reason_never_exceeds_the_tiles_and_only_stream_frames(table, n_tiles):
-    tiles = choose_tiles(table, n_tiles)
+@given(tables=candidate_tables(), n_tiles=st.integers(1, 30))
+def test_selection_shows_every_reason_never_exceeds_the_tiles_and_only_stream_frames(tables, n_tiles):
+    table, views = tables
+    tiles = choose_tiles(table, views, n_tiles)
     frames_with_candidates = table["time_ns"].nunique()
     assert len(tiles) == min(n_tiles, frames_with_candidates) and tiles["time_ns"].is_unique
     assert set(tiles["time_ns"]) <= set(table["time_ns"])  # the candidates' frames: frames of the stream
     shown = table[table["time_ns"].isin(tiles["time_ns"])]
-    kinds = ball_qa.decision_kinds(table)
+    kinds = ball_qa.decision_kinds(table, views)
+    changes = dict(view_changes(table, views))
     if len(kinds) <= n_tiles:
         assert set(shown.loc[~shown["kept"], "reason"]) == set(table.loc[~table["kept"], "reason"])
         assert shown["kept"].any() == table["kept"].any()
         no_detection = lambda t: (~t.groupby("time_ns")["kept"].any()).any()  # noqa: E731
         assert no_detection(shown) == no_detection(table)
+        for kind, times in changes.items():  # a frame of each way the views differ, titled with it
+            assert len(times) == 0 or kind in set(tiles["kind"]), kind
+    view = views.set_index("time_ns")
     for time_ns, kind in tiles.itertuples(index=False):  # each frame shows the decision it stands for
         rows = table[table["time_ns"] == time_ns]
-        if kind == KEPT:
+        if kind in changes:
+            assert time_ns in changes[kind]
+            own = rows[rows["kept"]]
+            assert view.loc[time_ns, "detected"] == (kind != DROPPED) and len(own) == (kind != FILLED)
+            if kind == MOVED:
+                assert (own["u"].iloc[0], own["v"].iloc[0]) != tuple(view.loc[time_ns, ["u", "v"]])
+        elif kind == KEPT:
             assert rows["kept"].any()
         elif kind == NO_DETECTION:
             assert not rows["kept"].any()
@@ -120,7 +177,7 @@ def _near(tile, colour, centre, radius):
 def test_a_kept_candidate_is_circled_green_where_its_centre_falls_on_the_tile():
     image = np.full((360, 480, 3), 90, np.uint8)
     rows = pd.DataFrame([candidate(0, 123.4, 77.8, True, KEPT), candidate(0, 140.0, 90.0, False, "slow")])
-    tile = draw_tile(image, rows, rows.iloc[0], "0.00 s kept")
+    tile = draw_tile(image, rows, None, Focus(123.4, 77.8, 20.0), "0.00 s kept")
     assert tile.shape == (TITLE_PX + TILE_PX, TILE_PX, 3)
     body = tile[TITLE_PX:]
     x0, y0, side = crop_square(123.4, 77.8, 20.0, 480, 360)
@@ -129,8 +186,46 @@ def test_a_kept_candidate_is_circled_green_where_its_centre_falls_on_the_tile():
     radius = int(round(2 * np.sqrt(20 / np.pi) / 2 * TILE_PX / side)) + 4
     assert _near(body, KEPT_BGR, kept_at, radius + 2) and not _near(body, KEPT_BGR, kept_at, radius - 4)
     assert _near(body, REFUSED_BGR, tile_position((140.0, 90.0), x0, y0, side), radius + 2)
-    refused_only = draw_tile(image, rows.iloc[1:], rows.iloc[1], "0.00 s slow")
+    refused_only = draw_tile(image, rows.iloc[1:], None, Focus(140.0, 90.0, 20.0), "0.00 s slow")
     assert not _near(refused_only, KEPT_BGR, (TILE_PX / 2, TILE_PX / 2 + TITLE_PX), TILE_PX)
+    assert not _near(tile, VIEW_BGR, (TILE_PX / 2, TILE_PX / 2 + TITLE_PX), TILE_PX)  # no view: no X
+
+
+def _cyan(body):
+    """The (u, v) tile pixels of the cyan X: near cyan and unlike the grey image and the circles."""
+    return np.argwhere(np.abs(body.astype(int) - VIEW_BGR).sum(axis=-1) < 200)[:, ::-1]
+
+
+def test_the_multi_view_ball_is_a_cyan_x_centred_on_its_pixel_with_the_ball_left_open():
+    """A view at the refused candidate (a moved ball): the X's pixels centre on the view's place on the
+    tile within 1 px (its arms are alike), none within the circle's radius (the ball stays visible)."""
+    image = np.full((360, 480, 3), 90, np.uint8)
+    rows = pd.DataFrame([candidate(0, 123.4, 77.8, True, KEPT), candidate(0, 140.0, 90.0, False, "slow")])
+    view = rows.iloc[1][["u", "v", "area_px"]]
+    body = draw_tile(image, rows, view, Focus(123.4, 77.8, 20.0), "0.00 s moved")[TITLE_PX:]
+    x0, y0, side = crop_square(123.4, 77.8, 20.0, 480, 360)
+    centre = tile_position((140.0, 90.0), x0, y0, side)
+    cross = _cyan(body)
+    assert len(cross) > 40 and np.abs(cross.mean(axis=0) - centre).max() < 1.0
+    radius = int(round(2 * np.sqrt(20 / np.pi) / 2 * TILE_PX / side)) + 4
+    assert np.hypot(*(cross - centre).T).min() > radius - 1 and not _near(body, VIEW_BGR, centre, radius - 1)
+
+
+def test_a_moved_ball_tile_shows_both_the_detection_and_the_view():
+    """A view 150 px from the detection of a 480 px frame (farther than a crop of width / 8): the moved tile's
+    crop grows to hold both, the detection circled green and the view marked with the cyan X."""
+    image = np.full((360, 480, 3), 90, np.uint8)
+    rows = pd.DataFrame([candidate(0, 100.0, 100.0, True, KEPT), candidate(0, 250.0, 160.0, False, "static")])
+    views = views_of(rows, 1, lambda frame, r: r[~r["kept"]])
+    focus = ball_qa._focus(rows, views.iloc[0], MOVED)
+    body = draw_tile(image, rows, views.iloc[0], focus, "0.00 s moved")[TITLE_PX:]
+    x0, y0, side = crop_square(*focus[:3], 480, 360, focus.span_px)
+    assert side == round((150 + 2 * np.sqrt(20 / np.pi)) / (1 - 32 / TILE_PX))  # span, ball, 16 px marks
+    for u, v in ((100.0, 100.0), (250.0, 160.0)):
+        assert (0 <= tile_position((u, v), x0, y0, side)).all() and (tile_position((u, v), x0, y0, side)
+                                                                      < TILE_PX).all()
+    assert _near(body, KEPT_BGR, tile_position((100.0, 100.0), x0, y0, side), 12)
+    assert np.abs(_cyan(body).mean(axis=0) - tile_position((250.0, 160.0), x0, y0, side)).max() < 1.0
 
 
 def test_a_crop_at_the_image_edge_stays_inside_and_the_point_keeps_its_place():
@@ -160,8 +255,9 @@ def test_the_sheet_decodes_only_the_chosen_frames_and_stops_after_the_last():
             yield CountingFrame(int(t), jpeg)
 
     CountingFrame.decoded = []
-    sheet = ball_qa_sheet(frames(), times, table, "s00 cam0")
-    chosen = choose_tiles(table, 24)
+    views = lab_views(table)
+    sheet = ball_qa_sheet(frames(), times, table, views, "s00 cam0")
+    chosen = choose_tiles(table, views, 24)
     assert sorted(CountingFrame.decoded) == sorted(chosen["time_ns"])
     assert passed[-1] == chosen["time_ns"].max()  # the stream is left after the last chosen frame
     band = sheet.shape[0] - 4 * (TITLE_PX + TILE_PX)  # 4 rows of tiles under the summary band
@@ -169,9 +265,12 @@ def test_the_sheet_decodes_only_the_chosen_frames_and_stops_after_the_last():
 
 
 def test_the_stage_writes_the_sheet_of_a_tiny_stream(tmp_path):
-    """20 frames of an orange ball crossing a grey room beside a static box: the sheet has a tile per
-    frame with candidates (20 < 24), 4 rows of 6, and its kept tiles show the ball circled green."""
+    """20 frames of an orange ball crossing a grey room beside a static box, refused off_track in every
+    fourth frame, where the multi-view ball fills it: the sheet has a tile per frame with candidates
+    (20 < 24), 4 rows of 6, its filled tiles first with the ball marked by the cyan X, its kept tiles the
+    ball circled green."""
     stream, candidates = tmp_path / "cam0.mcap", tmp_path / "cam0.parquet"
+    (tmp_path / "ball_views").mkdir()
     rows = []
     with CameraStreamWriter(stream, 0, "cam0") as writer:
         for f in range(20):
@@ -183,22 +282,31 @@ def test_the_stage_writes_the_sheet_of_a_tiny_stream(tmp_path):
             rows += [candidate(f, u, v, f % 4 != 3, KEPT if f % 4 != 3 else "off_track", first_ns=FIRST_NS),
                      candidate(f, 400.0, 300.0, False, "static", area=1600, score=0.1, first_ns=FIRST_NS)]
     write_table(pd.DataFrame(rows), candidates, BALL_CANDIDATES, Provenance("detection"))
+    ball = lambda frame, r: r[r["kept"] | (r["reason"] == "off_track")]  # noqa: E731
+    shifted = pd.DataFrame(rows).assign(time_ns=lambda t: t["time_ns"] - FIRST_NS)  # views_of: frames from 0
+    views = views_of(shifted, 20, ball).assign(time_ns=lambda t: t["time_ns"] + FIRST_NS)
+    write_table(views, tmp_path / "ball_views" / "cam0.parquet", DETECTIONS, Provenance("triangulation"))
     out = tmp_path / "ball_qa_s00_cam0.jpg"
     params = {"session": "s00", "cam": "cam0", "strict": True,
               "reading": {"timestamps": None, "start_ns": 0, "topic": None}}
     report_ball_qa.main(StageContext("report_ball_qa", Named(stream=str(stream), timestamps=[],
-                                                             candidates=str(candidates)),
+                                                             candidates=str(candidates),
+                                                             ball_views=str(tmp_path / "ball_views")),
                                      Named(figure=str(out)), params, None))
     sheet = cv2.imread(str(out))
     band = sheet.shape[0] - 4 * (TITLE_PX + TILE_PX)
     assert sheet.shape[1] == TILE_COLUMNS * TILE_PX and 30 <= band < 90
-    tiles = choose_tiles(pd.DataFrame(rows), 24)
-    assert len(tiles) == 20
-    first = sheet[band + TITLE_PX:band + TITLE_PX + TILE_PX, :TILE_PX]  # the first kept frame's tile
-    frame = (tiles["time_ns"].iloc[0] - FIRST_NS) // FRAME_NS
-    u, v = 60.0 + 15 * frame, 120.0 + 4 * frame
-    x0, y0, side = crop_square(u, v, 20.0, 480, 360)
-    assert _near(first, KEPT_BGR, tile_position((u, v), x0, y0, side), 20)
+    tiles = choose_tiles(pd.DataFrame(rows), views, 24)
+    filled = int((tiles["kind"] == FILLED).sum())  # its 5 frames shared with off_track and no detection
+    assert len(tiles) == 20 and filled >= 1 and set(tiles["kind"][:filled]) == {FILLED}
+    assert tiles["kind"][filled] == KEPT
+    for k in (0, filled):  # the first filled frame's tile, the first kept frame's
+        body = sheet[band + TITLE_PX:band + TITLE_PX + TILE_PX, k * TILE_PX:(k + 1) * TILE_PX]
+        frame = (tiles["time_ns"].iloc[k] - FIRST_NS) // FRAME_NS
+        u, v = 60.0 + 15 * frame, 120.0 + 4 * frame
+        at = tile_position((u, v), *crop_square(u, v, 20.0, 480, 360))
+        assert np.abs(_cyan(body).mean(axis=0) - at).max() < 1.5, k  # the JPEG's blur: 1.5 px
+        assert _near(body, KEPT_BGR, at, 20) == (k == filled), k
 
 
 def test_the_tiny_run_has_a_sheet_for_every_camera(tiny_run):

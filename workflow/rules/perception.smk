@@ -231,6 +231,7 @@ rule report_ball_qa:
         stream=lambda wc: camera_file(wc.session, wc.cam),
         timestamps=lambda wc: timestamp_files(wc.session, [wc.cam]),
         candidates="interim/ball_candidates/{session}/{cam}.parquet",
+        ball_views="interim/ball_views/{session}",  # triangulation's folder: {cam}.parquet is the camera's
     output:
         figure=report(
             "reports/figures/ball_qa_{session}_{cam}.jpg",
