@@ -46,20 +46,29 @@ def test_ball_truth_is_continuous_within_rallies(session):
     assert step.max() < 0.3  # < 30 m/s between frames: no teleporting at hits or bounces
 
 
+def _rows_at(table: pd.DataFrame, key: str, players: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """Each (player, time)'s row of a truth table (the player's first at or after the time): its columns
+    after time_ns and the player's name, as floats. Each player's rows are found once per table: masking all
+    258,615 people rows for each of the 877 returns and 9 offsets took 217 s of CPU, this 0.8 s for the same
+    features, bit for bit."""
+    names, row_times = table[key].to_numpy(), table["time_ns"].to_numpy()
+    index = np.empty(len(times), np.int64)
+    for name in np.unique(players):
+        rows, wanted = np.flatnonzero(names == name), players == name
+        index[wanted] = rows[np.searchsorted(row_times[rows], times[wanted])]
+    return table.iloc[index, 2:].to_numpy(float)
+
+
 def _pre_hit_features(session, frames_before: int) -> tuple[np.ndarray, np.ndarray]:
     """Hitter's 8 joints, paddle and ball `frames_before` frames before each good return, mirrored to +y."""
-    people, paddles = session.people, session.paddles
-    X, y = [], []
     returns = session.shots[(session.shots.outcome == "ok") & (session.shots.shot > 0)]  # not serves
-    for shot in returns.itertuples():
-        t = shot.t_hit_ns - frames_before * FRAME_NS
-        body = people[(people.person == shot.hitter)]
-        row = body.iloc[np.searchsorted(body.time_ns.to_numpy(), t)]
-        joints = row.to_numpy()[2:].astype(float).reshape(25, 3)[list(MODEL_JOINT_IDS)]
-        pad = paddles[paddles.player == shot.hitter]
-        prow = pad.iloc[np.searchsorted(pad.time_ns.to_numpy(), t)].to_numpy()[2:].astype(float)
-        ball = ball_positions_at(session.ball, [t])[0]
-        feats = np.concatenate([joints.ravel(), prow, ball])
+    times, hitters = returns.t_hit_ns.to_numpy() - frames_before * FRAME_NS, returns.hitter.to_numpy()
+    bodies = _rows_at(session.people, "person", hitters, times).reshape(len(times), 25, 3)
+    paddles = _rows_at(session.paddles, "player", hitters, times)
+    balls = ball_positions_at(session.ball, times)
+    X, y = [], []
+    for shot, body, prow, ball in zip(returns.itertuples(), bodies, paddles, balls, strict=True):
+        feats = np.concatenate([body[list(MODEL_JOINT_IDS)].ravel(), prow, ball])
         s = shot.side  # mirror the far player (rotation by pi about z) so every hitter is at +y
         feats = feats * np.tile([s, s, 1.0], len(feats) // 3)
         # The paddle frame flips between forehand and backhand (its column 2 is the forehand face):
