@@ -484,3 +484,18 @@ def test_a_ball_rolling_on_the_table_refused_slow_by_every_camera_is_triangulate
     np.testing.assert_array_equal(on, np.arange(80) < 40)
     assert np.linalg.norm(views["points"][:40] - roll[:40], axis=1).max() < 3e-3
     assert not over_table_top(held).any() and over_table_top(roll).all()
+
+
+def test_a_flight_too_short_to_judge_is_neither_ball_nor_no_ball():
+    """12 frames of a ball flying off under gravity (fewer than min_flight_frames: 'short_flight'), alone,
+    and a ball held still elsewhere: the short flight is neither (every camera keeps its own detection),
+    the held ball is no ball."""
+    t = np.arange(200) * 0.01
+    xyz = np.full((200, 3), np.nan)
+    short = t < 0.12
+    xyz[short] = np.column_stack([0.1 * t[short], 2.0 + 3.0 * t[short], 0.2 - 0.5 * 9.81 * t[short] ** 2])
+    held = t >= 1.0
+    xyz[held] = [1.5, -2.0, 1.0] + 0.02 * np.sin(3 * t[held])[:, None]
+    assert FLIGHT_RULE.min_flight_frames > short.sum()
+    is_ball, no_ball = on_ball_tracks(np.round(t * 1e9).astype(np.int64) + 10**18, xyz, FLIGHT_RULE)
+    assert not is_ball.any() and not no_ball[short].any() and no_ball[held].all()
