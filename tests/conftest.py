@@ -32,6 +32,30 @@ def tiny_run(tmp_path_factory):
     return root
 
 
+@pytest.fixture(scope="session")
+def tiny_video(tiny_run, tmp_path_factory):
+    """The tiny run's camera `cam` of session s00 as a video file (tests/lab_util.py), made once per (cam,
+    suffix) for all the lab tests: a function (cam, suffix) -> (its path, frame times), the file to be copied,
+    not changed. A camera is encoded once (write_video, ~22 s on 2 cores) and remuxed into other containers:
+    the two lab layouts' six videos cost three encodings."""
+    from lab_util import remux, write_video
+
+    folder, encoded, made = tmp_path_factory.mktemp("tiny_videos"), {}, {}
+
+    def video(cam: str, suffix: str) -> tuple[Path, np.ndarray]:
+        if (cam, suffix) not in made:
+            path = folder / f"{cam}.{suffix}"
+            if cam in encoded:
+                remux(encoded[cam][0], path)
+                made[cam, suffix] = path, encoded[cam][1]
+            else:
+                mcap = tiny_run / f"raw/sessions/s00/{cam}.mcap"
+                made[cam, suffix] = encoded[cam] = path, write_video(mcap, path)
+        return made[cam, suffix]
+
+    return video
+
+
 @pytest.fixture(scope="module")
 def reader():
     """The fuzz tests' reader calls in a child process (tests/fuzz_util.py), one child per test module."""

@@ -32,6 +32,18 @@ def write_video(mcap, path, narrower_px=0) -> np.ndarray:
     return np.asarray(times, np.int64)
 
 
+def remux(source, dest) -> None:
+    """The video `source`'s packets copied, not decoded, into the container that `dest`'s suffix names: the
+    same frames (all 8,442 of a tiny-run camera's .mp4 remuxed to .mkv decode equal to that camera encoded
+    straight to .mkv, with the same time base and duration) in 0.15 s, where write_video takes ~22 s."""
+    with av.open(str(source)) as container, av.open(str(dest), "w") as out:
+        stream = out.add_stream_from_template(container.streams.video[0])
+        for packet in container.demux(container.streams.video[0]):
+            if packet.dts is not None:  # not the demuxer's empty end-of-stream packet
+                packet.stream = stream
+                out.mux(packet)
+
+
 def dotted_openpose(source, dest, cam) -> None:
     """OpenPose's NAME_000000000012_keypoints.json files renamed to the layout cam0.00012.json."""
     dest.mkdir(parents=True)

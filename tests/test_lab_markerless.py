@@ -87,14 +87,15 @@ def markerless_openpose(source, dest, cam, n_frames, bystander) -> None:
 
 
 @pytest.fixture(scope="module")
-def lab_root(tiny_run, tmp_path_factory):
+def lab_root(tiny_run, tiny_video, tmp_path_factory):
     root = copy_checkout(tmp_path_factory.mktemp("markerless"))
     (root / ".venv").symlink_to(ROOT / ".venv")  # the README's commands call .venv/bin/snakemake
     session = root / "raw/sessions/lab01"
     session.mkdir(parents=True)
     twin = tiny_run / "raw/sessions/s00"
     for cam, name in NAMES.items():
-        times = write_video(twin / f"{cam}.mcap", session / f"{name}.mp4")
+        video, times = tiny_video(cam, "mp4")
+        shutil.copyfile(video, session / f"{name}.mp4")
         pd.DataFrame({"time_ns": times}).to_csv(session / f"{name}_timestamps.csv", index=False)
         markerless_openpose(twin / "openpose" / cam, session / "openpose" / name, name, len(times),
                             bystander=name == BYSTANDER_CAMERA)

@@ -3,11 +3,13 @@ container times, two with timestamp CSVs), OpenPose JSON in the dotted per-frame
 Anipose TOML calibration in millimetres, and no OptiTrack. Built from the tiny twin run, so the result
 is checked against that run's own 3D ball and joints."""
 
+import shutil
+
 import numpy as np
 import pandas as pd
 import pytest
 import yaml
-from lab_util import CODEC, dotted_openpose, write_video
+from lab_util import CODEC, dotted_openpose
 from workflow_util import copy_checkout, snakemake
 
 from pingpong.io.calibration_import import export_anipose_toml
@@ -17,14 +19,15 @@ CAMERAS = ["cam0", "cam1", "cam2"]
 
 
 @pytest.fixture(scope="module")
-def lab_run(tiny_run, tmp_path_factory):
+def lab_run(tiny_run, tiny_video, tmp_path_factory):
     root = copy_checkout(tmp_path_factory.mktemp("lab_session"))
     session = root / "raw/sessions/lab01"
     session.mkdir(parents=True)
     twin = tiny_run / "raw/sessions/s00"
     for k, cam in enumerate(CAMERAS):
         suffix = ("mp4", "mkv", "mp4")[k] if CODEC == "libx264" else "mkv"
-        times = write_video(twin / f"{cam}.mcap", session / f"{cam}.{suffix}")
+        video, times = tiny_video(cam, suffix)
+        shutil.copyfile(video, session / f"{cam}.{suffix}")
         if k:  # cam0: the container's times from lab.video_start_ns on; cam1, cam2: a CSV of camera times
             pd.DataFrame({"time_ns": times}).to_csv(session / f"{cam}_timestamps.csv", index=False)
         dotted_openpose(twin / "openpose" / cam, session / "openpose" / cam, cam)
