@@ -56,6 +56,16 @@ def tiny_video(tiny_run, tmp_path_factory):
     return video
 
 
+@pytest.fixture(scope="session")
+def twin_stream():
+    """Camera 0's frames of a 2-rally twin session (tests/twin_util.py: seed 5, ~900 frames at 480x360, JPEG
+    q90, 100 Hz) and its ball truth, rendered once (~18 s) for the detector tests of test_detection and
+    test_ball_track: to be read, not changed."""
+    import twin_util
+
+    return twin_util.twin_stream(5, 2, 480, 360)
+
+
 @pytest.fixture(scope="module")
 def reader():
     """The fuzz tests' reader calls in a child process (tests/fuzz_util.py), one child per test module."""

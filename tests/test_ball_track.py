@@ -12,7 +12,6 @@ import cv2
 import numpy as np
 import pandas as pd
 import pytest
-import twin_util
 import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -49,10 +48,10 @@ def _track(frames):
 
 
 @pytest.fixture(scope="module")
-def twin_scored():
-    """Track detections of one twin camera (tests/test_detection.py's stream: 2 rallies, 480x360, JPEG q90,
-    100 Hz), their distance to the truth (px), the truth's visibility, and the candidates table."""
-    frames, truth = twin_util.twin_stream(5, 2, 480, 360)
+def twin_scored(twin_stream):
+    """Track detections of one twin camera (conftest's twin_stream, test_detection's too: 2 rallies, 480x360,
+    JPEG q90, 100 Hz), their distance to the truth (px), the truth's visibility, and the candidates table."""
+    frames, truth = twin_stream
     found, candidates = _track(frames)
     error = np.hypot(found["u"] - truth["u"], found["v"] - truth["v"]).to_numpy()
     return found, error, truth["visibility"].to_numpy(), candidates

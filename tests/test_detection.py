@@ -13,7 +13,6 @@ import cv2
 import numpy as np
 import pandas as pd
 import pytest
-import twin_util
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from workflow_util import ROOT
@@ -40,12 +39,6 @@ WALL_BGR = render.hsv_to_bgr(*render.WALL_HSV)
 WINDOW_ROWS = 2 * BallDetector().scaled(WIDTH)[2] + 1  # the rows of a search window at 480 px wide
 # the detector before the blur test: no saturation reaches its peak, and no new track looks back
 COLOUR_TEST_ALONE = replace(BallDetector(), blur_peak_saturation=256, track_back_frames=0)
-
-
-@pytest.fixture(scope="module")
-def twin_stream():
-    """One camera's frames of a 2-rally twin session (~900 frames, 480x360, q90) and its ball truth."""
-    return twin_util.twin_stream(5, 2, WIDTH, HEIGHT)
 
 
 @pytest.fixture(scope="module")
