@@ -12,7 +12,7 @@ from pingpong.twin.session import FaultRates, ball_positions_at, simulate_sessio
 
 @pytest.fixture(scope="module")
 def session():
-    return simulate_session(100, FaultRates(), rng_for(7, "test"), session_index=0)  # ~300 returns
+    return simulate_session(100, FaultRates(), rng_for(7, "test"), session_index=0)  # 877 good returns
 
 
 def test_same_seed_same_truth():
