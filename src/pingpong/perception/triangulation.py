@@ -320,6 +320,7 @@ def paired_views(cameras: list[Camera], times: np.ndarray, px: np.ndarray, open_
     of 15 frames or more, 2 of 338). Loops over camera pairs, never over frames."""
     n_cams = px.shape[1]
     gate = np.broadcast_to(np.asarray(max_reproj_px, float), (n_cams,))
+    aligned = [_candidates_on_frames(table, times) for table in candidates]  # once, not per camera pair
     frames, hypotheses = [], []
     for seed, (rows, uv) in enumerate(seeds):
         rows, uv = rows[open_frame[rows]], uv[open_frame[rows]]
@@ -328,8 +329,7 @@ def paired_views(cameras: list[Camera], times: np.ndarray, px: np.ndarray, open_
         for other in range(n_cams):
             if other != seed and len(rows):
                 hypothesis[:, other] = _epipolar_candidates(
-                    [cameras[seed], cameras[other]], rows, uv,
-                    *_candidates_on_frames(candidates[other], times), gate[[seed, other]])
+                    [cameras[seed], cameras[other]], rows, uv, *aligned[other], gate[[seed, other]])
         frames.append(rows)
         hypotheses.append(hypothesis)
     frames, hypotheses = np.concatenate(frames), np.concatenate(hypotheses)
