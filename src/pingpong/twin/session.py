@@ -73,7 +73,7 @@ from pingpong.twin.repertoire import (
     sample_tactics,
     target_strike_x,
 )
-from pingpong.twin.strokes import Hit, _smoothstep, evaluate_player, paddle_centre_at_impact, plan_player
+from pingpong.twin.strokes import Hit, evaluate_player, paddle_centre_at_impact, plan_player, smoothstep
 
 SIDES = {1: "near", -1: "far"}  # the player at +y is 'near', at -y 'far'
 SESSION_EPOCH_NS = 1_767_225_600_000_000_000  # 2026-01-01T00:00Z; session k starts k hours later
@@ -430,8 +430,8 @@ def toss_hand_weights(times: np.ndarray, tosses: list[Toss]) -> tuple[np.ndarray
     target, weight = np.zeros((len(times), 3)), np.zeros(len(times))
     for toss in tosses:
         still = toss.t_release - TOSS_STILL_S
-        w = np.where(times < toss.t_release, _smoothstep(times, still - TOSS_REACH_S, still),
-                     1 - _smoothstep(times, toss.t_release, toss.t_release + TOSS_DROP_S))
+        w = np.where(times < toss.t_release, smoothstep(times, still - TOSS_REACH_S, still),
+                     1 - smoothstep(times, toss.t_release, toss.t_release + TOSS_DROP_S))
         take = w > weight
         weight[take] = w[take]
         target[take] = toss.palm - np.array([0.0, 0.0, PALM_DEPTH_M])

@@ -119,7 +119,9 @@ def paddle_frame(normal: np.ndarray, handle_hint: np.ndarray) -> np.ndarray:
     return np.column_stack([tip, np.cross(n, tip), n])
 
 
-def _smoothstep(t: np.ndarray, start: float, end: float) -> np.ndarray:
+def smoothstep(t: np.ndarray, start: float, end: float) -> np.ndarray:
+    """0 before `start`, 1 after `end`, and between them the cubic 3s^2 - 2s^3 of the elapsed share s: a move
+    that starts and ends at rest."""
     s = np.clip((t - start) / max(end - start, 1e-9), 0.0, 1.0)
     return s * s * (3 - 2 * s)
 
@@ -327,8 +329,8 @@ def evaluate_player(plan: PlayerPlan, times: np.ndarray) -> StrokeTrajectory:
         if m.start == m.stop:
             continue
         neutral, prepared, actual = np.split(sp.spline(ts[m]), 3, axis=1)
-        w = _smoothstep(ts[m], sp.intent_start, sp.t_hit)[:, None]
-        w_late = _smoothstep(ts[m], sp.late_start, sp.t_hit)[:, None]
+        w = smoothstep(ts[m], sp.intent_start, sp.t_hit)[:, None]
+        w_late = smoothstep(ts[m], sp.late_start, sp.t_hit)[:, None]
         sig[m] = neutral + w * (prepared - neutral) + w_late * (actual - prepared)
         rot[m] = sp.rot_ref @ Rotation.from_rotvec(sig[m, ROT]).as_matrix()
     unsort = np.empty_like(order)
