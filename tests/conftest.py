@@ -3,6 +3,8 @@ and the small twin run that the stage tests share."""
 
 import math
 import os
+import shutil
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +15,22 @@ from workflow_util import ROOT, copy_checkout, snakemake
 
 settings.register_profile("repeatable", derandomize=True, deadline=None)
 settings.load_profile("repeatable")
+
+# The suite's temporary folders (the tiny run, the lab layouts, the workflow copies) at their peak, GB: with
+# pyproject's tmp_path_retention_policy (docs/performance.md, "CI"). A full disk fails the tests that copy
+# recordings with copy errors far from the cause: said first, where it is short.
+SUITE_DISK_GB = 8
+
+
+def pytest_sessionstart(session):
+    folder = Path(session.config.option.basetemp or tempfile.gettempdir()).resolve()
+    existing = next(p for p in (folder, *folder.parents) if p.exists())  # --basetemp is made later
+    free = shutil.disk_usage(existing).free / 2**30
+    line = f"free disk under {folder}: {free:.1f} GB; the suite's temporary folders take ~{SUITE_DISK_GB} GB"
+    if free < SUITE_DISK_GB:
+        line = f"WARNING: {line}: tests that copy recordings will fail with copy errors"
+    session.config.pluginmanager.get_plugin("terminalreporter").write_line(line)
+
 
 # One small run of the whole default workflow shared by the stage tests: config/test/tiny.yaml (its comments
 # say what it is and why).
