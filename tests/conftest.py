@@ -7,12 +7,6 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from pingpong.common.numerics import pin_numerics
-
-# The tests' own process computes as the workflow's jobs do (workflow/scripts/stage.py): the same kernels and
-# one thread, set before numpy, scipy, torch or cv2 loads, so that a test's numbers are the same on any CPU.
-pin_numerics()
-
 import numpy as np
 import pytest
 import yaml
