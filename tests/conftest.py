@@ -76,8 +76,8 @@ def tiny_video(tiny_run, tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def twin_stream():
-    """Camera 0's frames of a 2-rally twin session (tests/twin_util.py: seed 5, ~900 frames at 480x360, JPEG
-    q90, 100 Hz) and its ball truth, rendered once (~18 s) for the detector tests of test_detection and
+    """Camera 0's frames of a 2-rally twin session (tests/twin_util.py: seed 5, 3,340 frames at 480x360,
+    JPEG q90, 100 Hz) and its ball truth, rendered once (~18 s) for the detector tests of test_detection and
     test_ball_track: to be read, not changed."""
     import twin_util
 

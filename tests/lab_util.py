@@ -1,5 +1,6 @@
 """Recordings laid out as a lab brings them, made from the tiny twin run's (the lab-session tests)."""
 
+import itertools
 import shutil
 
 import av
@@ -42,17 +43,16 @@ def remux(source, dest, crop_right_px: int = 0) -> None:
     with av.open(str(source)) as container, av.open(str(dest), "w") as out:
         video = container.streams.video[0]
         stream = out.add_stream_from_template(video)
-        cropping = f"h264_metadata=crop_right={crop_right_px}"
-        crop = av.bitstream.BitStreamFilterContext(cropping, video, stream) if crop_right_px else None
-        for packet in container.demux(video):
-            if packet.dts is None:  # the demuxer's empty end-of-stream packet
-                continue
-            for copied in crop.filter(packet) if crop else [packet]:
-                copied.stream = stream
-                out.mux(copied)
-        for copied in crop.filter(None) if crop else []:  # what the filter still holds
-            copied.stream = stream
-            out.mux(copied)
+        # not the demuxer's empty end-of-stream packet
+        packets = (packet for packet in container.demux(video) if packet.dts is not None)
+        if crop_right_px:
+            cropping = f"h264_metadata=crop_right={crop_right_px}"
+            crop = av.bitstream.BitStreamFilterContext(cropping, video, stream)
+            # None at the end: what the filter still holds
+            packets = itertools.chain.from_iterable(crop.filter(p) for p in itertools.chain(packets, [None]))
+        for packet in packets:
+            packet.stream = stream
+            out.mux(packet)
 
 
 def dotted_openpose(source, dest, cam) -> None:
